@@ -1,0 +1,49 @@
+//! The codec's typed error.
+
+use thiserror::Error;
+
+/// Everything that can go wrong while encoding or decoding, split by cause.
+#[derive(Debug, Error)]
+pub enum CodecError {
+    /// The data does not start with the `.ezw` magic bytes.
+    #[error("not an .ezw file (wrong magic bytes)")]
+    BadMagic,
+    /// The container version is newer than this decoder understands.
+    #[error("unsupported .ezw version {0} (this build reads version {1})")]
+    UnsupportedVersion(u16, u16),
+    /// The file ends before the header (or the nodata mask) is complete.
+    #[error("truncated .ezw header: {0}")]
+    TruncatedHeader(&'static str),
+    /// The header checksum does not match its contents.
+    #[error("corrupt .ezw header: checksum mismatch (stored {stored:08x}, computed {computed:08x})")]
+    HeaderChecksum {
+        /// Checksum stored in the file.
+        stored: u32,
+        /// Checksum computed over the header bytes.
+        computed: u32,
+    },
+    /// A header field holds a value no encoder writes.
+    #[error("corrupt .ezw header: {0}")]
+    InvalidHeader(String),
+    /// Width or height is zero, or their product overflows.
+    #[error("invalid raster dimensions {width}x{height}")]
+    Dimensions {
+        /// Claimed width.
+        width: u64,
+        /// Claimed height.
+        height: u64,
+    },
+    /// Decoding would exceed a configured resource limit.
+    #[error("{what} ({needed}) exceeds the limit ({limit}); raise it if the file is trusted")]
+    LimitExceeded {
+        /// What was being limited.
+        what: &'static str,
+        /// Amount the file asks for.
+        needed: u64,
+        /// The configured limit.
+        limit: u64,
+    },
+    /// The encoder was given parameters it cannot honour.
+    #[error("invalid encoder parameters: {0}")]
+    InvalidParameters(String),
+}

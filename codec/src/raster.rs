@@ -1,0 +1,289 @@
+//! The in-memory elevation raster the codec encodes and decodes.
+//!
+//! A [`Raster`] is a single-band grid of typed samples in row-major order (row 0 first),
+//! with an optional nodata value and optional georeferencing that the container carries
+//! through untouched.
+
+use crate::error::CodecError;
+
+/// The numeric type of a raster's samples, as stored in the source file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SampleType {
+    /// Unsigned 8-bit integers.
+    U8,
+    /// Unsigned 16-bit integers.
+    U16,
+    /// Signed 16-bit integers (SRTM).
+    I16,
+    /// Signed 32-bit integers.
+    I32,
+    /// IEEE 754 single-precision floats.
+    F32,
+}
+
+impl SampleType {
+    /// Stable one-byte code used in the container header.
+    pub fn code(self) -> u8 {
+        match self {
+            SampleType::U8 => 1,
+            SampleType::U16 => 2,
+            SampleType::I16 => 3,
+            SampleType::I32 => 4,
+            SampleType::F32 => 5,
+        }
+    }
+
+    /// Inverse of [`SampleType::code`].
+    pub fn from_code(code: u8) -> Option<SampleType> {
+        Some(match code {
+            1 => SampleType::U8,
+            2 => SampleType::U16,
+            3 => SampleType::I16,
+            4 => SampleType::I32,
+            5 => SampleType::F32,
+            _ => return None,
+        })
+    }
+
+    /// Size of one sample in bytes.
+    pub fn bytes(self) -> usize {
+        match self {
+            SampleType::U8 => 1,
+            SampleType::U16 | SampleType::I16 => 2,
+            SampleType::I32 | SampleType::F32 => 4,
+        }
+    }
+
+    /// Whether the type holds integers (exactly representable in an `i64`).
+    pub fn is_integer(self) -> bool {
+        self != SampleType::F32
+    }
+
+    /// Short lower-case name (`u8`, `u16`, `i16`, `i32`, `f32`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SampleType::U8 => "u8",
+            SampleType::U16 => "u16",
+            SampleType::I16 => "i16",
+            SampleType::I32 => "i32",
+            SampleType::F32 => "f32",
+        }
+    }
+
+    /// Smallest and largest value the type can hold.
+    pub fn value_range(self) -> (f64, f64) {
+        match self {
+            SampleType::U8 => (0.0, u8::MAX as f64),
+            SampleType::U16 => (0.0, u16::MAX as f64),
+            SampleType::I16 => (i16::MIN as f64, i16::MAX as f64),
+            SampleType::I32 => (i32::MIN as f64, i32::MAX as f64),
+            SampleType::F32 => (f32::MIN as f64, f32::MAX as f64),
+        }
+    }
+}
+
+/// Sample storage, one variant per [`SampleType`], row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Samples {
+    /// Unsigned 8-bit samples.
+    U8(Vec<u8>),
+    /// Unsigned 16-bit samples.
+    U16(Vec<u16>),
+    /// Signed 16-bit samples.
+    I16(Vec<i16>),
+    /// Signed 32-bit samples.
+    I32(Vec<i32>),
+    /// Single-precision float samples.
+    F32(Vec<f32>),
+}
+
+impl Samples {
+    /// The type of the stored samples.
+    pub fn sample_type(&self) -> SampleType {
+        match self {
+            Samples::U8(_) => SampleType::U8,
+            Samples::U16(_) => SampleType::U16,
+            Samples::I16(_) => SampleType::I16,
+            Samples::I32(_) => SampleType::I32,
+            Samples::F32(_) => SampleType::F32,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            Samples::U8(v) => v.len(),
+            Samples::U16(v) => v.len(),
+            Samples::I16(v) => v.len(),
+            Samples::I32(v) => v.len(),
+            Samples::F32(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Sample `index` widened to `f64` (exact for every supported type).
+    pub fn get_f64(&self, index: usize) -> f64 {
+        match self {
+            Samples::U8(v) => v[index] as f64,
+            Samples::U16(v) => v[index] as f64,
+            Samples::I16(v) => v[index] as f64,
+            Samples::I32(v) => v[index] as f64,
+            Samples::F32(v) => v[index] as f64,
+        }
+    }
+
+    /// All samples widened to `f64`.
+    pub fn to_f64(&self) -> Vec<f64> {
+        (0..self.len()).map(|i| self.get_f64(i)).collect()
+    }
+
+    /// Builds samples of type `sample_type` from `f64` values, rounding and clamping
+    /// integers to the type's range (floats are narrowed with `as f32`).
+    pub fn from_f64(sample_type: SampleType, values: &[f64]) -> Samples {
+        fn int<T>(values: &[f64], lo: f64, hi: f64, cast: fn(f64) -> T) -> Vec<T> {
+            values
+                .iter()
+                .map(|&v| cast(if v.is_nan() { 0.0 } else { v.round().clamp(lo, hi) }))
+                .collect()
+        }
+        let (lo, hi) = sample_type.value_range();
+        match sample_type {
+            SampleType::U8 => Samples::U8(int(values, lo, hi, |v| v as u8)),
+            SampleType::U16 => Samples::U16(int(values, lo, hi, |v| v as u16)),
+            SampleType::I16 => Samples::I16(int(values, lo, hi, |v| v as i16)),
+            SampleType::I32 => Samples::I32(int(values, lo, hi, |v| v as i32)),
+            SampleType::F32 => Samples::F32(values.iter().map(|&v| v as f32).collect()),
+        }
+    }
+}
+
+/// Georeferencing carried from a GeoTIFF source to the decoded output, byte for byte.
+///
+/// The codec does not interpret it beyond storing it; `geotransform` follows GDAL's
+/// convention: `x = gt[0] + col·gt[1] + row·gt[2]`, `y = gt[3] + col·gt[4] + row·gt[5]`
+/// for the top-left corner of pixel (col, row).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Georef {
+    /// GDAL-style affine geotransform.
+    pub geotransform: [f64; 6],
+    /// GeoTIFF GeoKeyDirectoryTag (34735) values, empty when absent.
+    pub geo_key_directory: Vec<u16>,
+    /// GeoTIFF GeoDoubleParamsTag (34736) values.
+    pub geo_double_params: Vec<f64>,
+    /// GeoTIFF GeoAsciiParamsTag (34737) text.
+    pub geo_ascii_params: String,
+}
+
+/// A single-band elevation grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Raster {
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+    /// `width × height` samples, row-major.
+    pub samples: Samples,
+    /// The value marking missing samples (may be NaN for floats), if any.
+    pub nodata: Option<f64>,
+    /// Optional georeferencing.
+    pub georef: Option<Georef>,
+}
+
+impl Raster {
+    /// Creates a raster, checking that the sample count matches the dimensions.
+    pub fn new(width: usize, height: usize, samples: Samples) -> Result<Raster, CodecError> {
+        let expected = width.checked_mul(height).ok_or(CodecError::Dimensions {
+            width: width as u64,
+            height: height as u64,
+        })?;
+        if width == 0 || height == 0 || samples.len() != expected {
+            return Err(CodecError::Dimensions {
+                width: width as u64,
+                height: height as u64,
+            });
+        }
+        Ok(Raster {
+            width,
+            height,
+            samples,
+            nodata: None,
+            georef: None,
+        })
+    }
+
+    /// The sample type.
+    pub fn sample_type(&self) -> SampleType {
+        self.samples.sample_type()
+    }
+
+    /// Number of samples (`width × height`).
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Whether the raster has no samples (never true for a raster built by [`Raster::new`]).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether sample `index` is a valid (not nodata, not NaN) sample.
+    pub fn is_valid(&self, index: usize) -> bool {
+        let v = self.samples.get_f64(index);
+        if v.is_nan() {
+            return false;
+        }
+        match self.nodata {
+            Some(nd) => v != nd,
+            None => true,
+        }
+    }
+
+    /// The validity mask: `true` for every valid sample.
+    pub fn valid_mask(&self) -> Vec<bool> {
+        (0..self.len()).map(|i| self.is_valid(i)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_type_codes_round_trip() {
+        for t in [
+            SampleType::U8,
+            SampleType::U16,
+            SampleType::I16,
+            SampleType::I32,
+            SampleType::F32,
+        ] {
+            assert_eq!(SampleType::from_code(t.code()), Some(t));
+        }
+        assert_eq!(SampleType::from_code(0), None);
+        assert_eq!(SampleType::from_code(6), None);
+    }
+
+    #[test]
+    fn raster_rejects_mismatched_sizes() {
+        assert!(Raster::new(3, 2, Samples::U8(vec![0; 5])).is_err());
+        assert!(Raster::new(0, 2, Samples::U8(vec![])).is_err());
+        assert!(Raster::new(3, 2, Samples::U8(vec![0; 6])).is_ok());
+    }
+
+    #[test]
+    fn nodata_and_nan_are_invalid() {
+        let mut r = Raster::new(3, 1, Samples::F32(vec![1.0, f32::NAN, -9999.0])).unwrap();
+        r.nodata = Some(-9999.0);
+        assert_eq!(r.valid_mask(), vec![true, false, false]);
+    }
+
+    #[test]
+    fn from_f64_rounds_and_clamps() {
+        let s = Samples::from_f64(SampleType::U8, &[-3.0, 2.6, 300.0]);
+        assert_eq!(s, Samples::U8(vec![0, 3, 255]));
+    }
+}

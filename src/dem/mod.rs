@@ -1,0 +1,1 @@
+//! Reading and writing DEM files (being implemented).
