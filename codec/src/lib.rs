@@ -5,11 +5,34 @@
 //! `.ezw` container. No file formats and no command line live here.
 //!
 //! Pipeline, one module per stage: [`raster`] → [`quantize`] → [`wavelet`] → [`ezw`]
-//! (with [`entropy`]) → [`container`].
+//! (with [`entropy`]) → [`container`]; [`pipeline`] runs them end to end.
+//!
+//! ```
+//! use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
+//! let heights: Vec<i16> = (0..64 * 48).map(|i| ((i % 64) * 3 + (i / 64) * 2) as i16).collect();
+//! let raster = Raster::new(64, 48, Samples::I16(heights)).unwrap();
+//! let file = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+//! let decoded = decode(&file.bytes, &DecodeOptions::default()).unwrap();
+//! assert_eq!(decoded.raster, raster);
+//! ```
 
+#![warn(missing_docs)]
+
+pub mod container;
+pub mod entropy;
 pub mod error;
+pub mod ezw;
+pub mod mask;
+pub mod pipeline;
+pub mod quantize;
 pub mod raster;
+pub mod residual;
 pub mod wavelet;
 
+pub use container::{Header, Mode};
 pub use error::CodecError;
+pub use pipeline::{
+    decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
+};
 pub use raster::{Georef, Raster, SampleType, Samples};
+pub use wavelet::Wavelet;

@@ -1,0 +1,524 @@
+//! The `.ezw` container: header, nodata mask, embedded payload, float residuals.
+//!
+//! `codec/FORMAT.md` specifies the byte layout; this module is its implementation.
+//! All integers are little-endian. The header ends with a CRC-32 of everything before it.
+
+use crate::error::CodecError;
+use crate::ezw::{PassRecord, MAX_PLANE};
+use crate::quantize::ValueMapping;
+use crate::raster::{Georef, SampleType};
+use crate::wavelet::Wavelet;
+
+/// First eight bytes of every `.ezw` file.
+pub const MAGIC: [u8; 8] = *b"\x89EZW\r\n\x1a\n";
+/// The container version this build writes and reads.
+pub const VERSION: u16 = 1;
+/// `payload_len` value meaning "the encoder stopped at a byte budget".
+pub const PAYLOAD_CUT: u64 = u64::MAX;
+
+/// How the stream was made, which says what its complete decode guarantees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Bit-exact reconstruction (5/3; floats via grid or residuals).
+    Lossless,
+    /// Rate-driven (9/7 or a cut 5/3 stream): no error bound.
+    Lossy,
+    /// Every valid sample within `max_error` of the original.
+    MaxError,
+    /// Floats quantised to a user step (`--precision`): within `step / 2`.
+    Precision,
+}
+
+impl Mode {
+    fn code(self) -> u8 {
+        match self {
+            Mode::Lossless => 0,
+            Mode::Lossy => 1,
+            Mode::MaxError => 2,
+            Mode::Precision => 3,
+        }
+    }
+
+    fn from_code(code: u8) -> Option<Mode> {
+        Some(match code {
+            0 => Mode::Lossless,
+            1 => Mode::Lossy,
+            2 => Mode::MaxError,
+            3 => Mode::Precision,
+            _ => return None,
+        })
+    }
+
+    /// Lower-case name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Lossless => "lossless",
+            Mode::Lossy => "lossy",
+            Mode::MaxError => "max-error",
+            Mode::Precision => "precision",
+        }
+    }
+}
+
+/// Everything the decoder needs before the payload.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Header {
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Type of the source (and decoded) samples.
+    pub sample_type: SampleType,
+    /// Transform.
+    pub wavelet: Wavelet,
+    /// Decomposition levels.
+    pub levels: u8,
+    /// Coding mode.
+    pub mode: Mode,
+    /// Sample value of the coded integers (5/3) or offset of the coded reals (9/7, step 1).
+    pub mapping: ValueMapping,
+    /// Bound on |decoded − original| of the complete stream (0 lossless; +∞ lossy).
+    pub max_error: f64,
+    /// 9/7 quantiser step in coefficient units (1 for 5/3).
+    pub coefficient_step: f64,
+    /// Nodata value of the source (may be NaN), if it had one.
+    pub nodata: Option<f64>,
+    /// Minimum and maximum valid sample value of the source.
+    pub valid_range: (f64, f64),
+    /// Global bit-plane of the first pass; `None` when every coefficient is zero.
+    pub top_plane: Option<u8>,
+    /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
+    pub bands: Vec<(u8, f64)>,
+    /// Bytes of the complete payload, or [`PAYLOAD_CUT`].
+    pub payload_len: u64,
+    /// Bytes of the coded nodata mask (0: no mask, every sample valid).
+    pub mask_len: u32,
+    /// Bytes of the coded float residuals (0: none).
+    pub residual_len: u32,
+    /// One record per pass from the top plane down, for the passes the stream holds
+    /// completely.
+    pub passes: Vec<PassRecord>,
+    /// Georeferencing carried through.
+    pub georef: Option<Georef>,
+}
+
+impl Header {
+    /// Number of samples.
+    pub fn sample_count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// Serialises the header, checksum included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(256);
+        out.extend_from_slice(&MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes()); // header length, patched below
+        out.extend_from_slice(&self.width.to_le_bytes());
+        out.extend_from_slice(&self.height.to_le_bytes());
+        out.push(self.sample_type.code());
+        out.push(self.wavelet.code());
+        out.push(self.levels);
+        out.push(self.mode.code());
+        for v in [
+            self.mapping.offset,
+            self.mapping.step,
+            self.max_error,
+            self.coefficient_step,
+            self.valid_range.0,
+            self.valid_range.1,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.push(self.nodata.is_some() as u8);
+        out.extend_from_slice(&self.nodata.unwrap_or(0.0).to_bits().to_le_bytes());
+        out.push(self.top_plane.map_or(0xFF, |p| p));
+        out.extend_from_slice(&(self.bands.len() as u16).to_le_bytes());
+        for &(shift, scale) in &self.bands {
+            match self.wavelet {
+                Wavelet::Int53 => out.push(shift),
+                Wavelet::Cdf97 => out.extend_from_slice(&(scale as f32).to_le_bytes()),
+            }
+        }
+        out.extend_from_slice(&self.payload_len.to_le_bytes());
+        out.extend_from_slice(&self.mask_len.to_le_bytes());
+        out.extend_from_slice(&self.residual_len.to_le_bytes());
+        out.push(self.passes.len() as u8);
+        let mut previous_end = 0;
+        for pass in &self.passes {
+            write_varint(&mut out, pass.end_byte - previous_end);
+            previous_end = pass.end_byte;
+            out.extend_from_slice(&(pass.squared_error as f32).to_le_bytes());
+        }
+        match &self.georef {
+            None => out.push(0),
+            Some(g) => {
+                out.push(1);
+                for v in g.geotransform {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+                out.extend_from_slice(&(g.geo_key_directory.len() as u32).to_le_bytes());
+                for v in &g.geo_key_directory {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+                out.extend_from_slice(&(g.geo_double_params.len() as u32).to_le_bytes());
+                for v in &g.geo_double_params {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+                out.extend_from_slice(&(g.geo_ascii_params.len() as u32).to_le_bytes());
+                out.extend_from_slice(g.geo_ascii_params.as_bytes());
+            }
+        }
+        let total = (out.len() + 4) as u32;
+        out[10..14].copy_from_slice(&total.to_le_bytes());
+        let crc = crc32fast::hash(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
+        out
+    }
+
+    /// Parses and validates a header at the start of `data`; returns it and its length.
+    pub fn parse(data: &[u8]) -> Result<(Header, usize), CodecError> {
+        if data.len() < MAGIC.len() {
+            return Err(if MAGIC.starts_with(data) {
+                CodecError::TruncatedHeader("file shorter than the magic bytes")
+            } else {
+                CodecError::BadMagic
+            });
+        }
+        if data[..8] != MAGIC {
+            return Err(CodecError::BadMagic);
+        }
+        let mut r = Reader { data, pos: 8 };
+        let version = r.u16()?;
+        if version != VERSION {
+            return Err(CodecError::UnsupportedVersion(version, VERSION));
+        }
+        let header_len = r.u32()? as usize;
+        if header_len < 18 || header_len > data.len() {
+            return Err(if header_len > data.len() && header_len <= MAX_HEADER_LEN {
+                CodecError::TruncatedHeader("file ends inside the header")
+            } else {
+                CodecError::InvalidHeader(format!("header length {header_len}"))
+            });
+        }
+        let stored = u32::from_le_bytes(
+            data[header_len - 4..header_len]
+                .try_into()
+                .expect("4 bytes"),
+        );
+        let computed = crc32fast::hash(&data[..header_len - 4]);
+        if stored != computed {
+            return Err(CodecError::HeaderChecksum { stored, computed });
+        }
+        // From here on the bytes are what the encoder wrote; the checks below guard
+        // against a forged checksum.
+        let mut r = Reader {
+            data: &data[..header_len - 4],
+            pos: r.pos,
+        };
+        let width = r.u32()?;
+        let height = r.u32()?;
+        if width == 0 || height == 0 {
+            return Err(CodecError::Dimensions {
+                width: width as u64,
+                height: height as u64,
+            });
+        }
+        let sample_type = SampleType::from_code(r.u8()?)
+            .ok_or_else(|| CodecError::InvalidHeader("unknown sample type".into()))?;
+        let wavelet = Wavelet::from_code(r.u8()?)
+            .ok_or_else(|| CodecError::InvalidHeader("unknown wavelet".into()))?;
+        let levels = r.u8()?;
+        if levels as u32 > crate::wavelet::max_levels(width as usize, height as usize) {
+            return Err(CodecError::InvalidHeader(format!(
+                "{levels} levels for {width}x{height}"
+            )));
+        }
+        let mode = Mode::from_code(r.u8()?)
+            .ok_or_else(|| CodecError::InvalidHeader("unknown mode".into()))?;
+        let offset = r.f64()?;
+        let step = r.f64()?;
+        let max_error = r.f64()?;
+        let coefficient_step = r.f64()?;
+        let valid_range = (r.f64()?, r.f64()?);
+        if !(offset.is_finite()
+            && step.is_finite()
+            && step > 0.0
+            && coefficient_step.is_finite()
+            && coefficient_step > 0.0)
+        {
+            return Err(CodecError::InvalidHeader("quantisation parameters".into()));
+        }
+        let has_nodata = r.u8()? != 0;
+        let nodata_bits = r.u64()?;
+        let nodata = has_nodata.then(|| f64::from_bits(nodata_bits));
+        let top_plane = match r.u8()? {
+            0xFF => None,
+            p if p as u32 <= MAX_PLANE => Some(p),
+            p => return Err(CodecError::InvalidHeader(format!("top plane {p}"))),
+        };
+        let band_count = r.u16()? as usize;
+        let expected_bands = if levels == 0 {
+            1
+        } else {
+            3 * levels as usize + 1
+        };
+        if band_count != expected_bands {
+            return Err(CodecError::InvalidHeader(format!(
+                "{band_count} subbands for {levels} levels"
+            )));
+        }
+        let mut bands = Vec::with_capacity(band_count);
+        for _ in 0..band_count {
+            let (shift, scale) = match wavelet {
+                Wavelet::Int53 => (r.u8()?, 1.0),
+                Wavelet::Cdf97 => (0, f32::from_le_bytes(r.array()?) as f64),
+            };
+            if shift as u32 > MAX_PLANE || !(scale.is_finite() && scale > 0.0) {
+                return Err(CodecError::InvalidHeader("subband shift or scale".into()));
+            }
+            bands.push((shift, scale));
+        }
+        let payload_len = r.u64()?;
+        let mask_len = r.u32()?;
+        let residual_len = r.u32()?;
+        let pass_count = r.u8()? as usize;
+        let top = top_plane.map_or(0, u32::from);
+        if pass_count > top as usize + 1 || (top_plane.is_none() && pass_count > 0) {
+            return Err(CodecError::InvalidHeader(format!(
+                "{pass_count} passes for top plane {top}"
+            )));
+        }
+        let mut passes = Vec::with_capacity(pass_count);
+        let mut end_byte = 0u64;
+        for k in 0..pass_count {
+            end_byte = end_byte
+                .checked_add(r.varint()?)
+                .ok_or_else(|| CodecError::InvalidHeader("pass byte counts overflow".into()))?;
+            let squared_error = f32::from_le_bytes(r.array()?) as f64;
+            passes.push(PassRecord {
+                plane: top - k as u32,
+                end_byte,
+                squared_error,
+            });
+        }
+        let georef = match r.u8()? {
+            0 => None,
+            1 => {
+                let mut geotransform = [0.0; 6];
+                for v in &mut geotransform {
+                    *v = r.f64()?;
+                }
+                let n = r.count(2)?;
+                let geo_key_directory = (0..n).map(|_| r.u16()).collect::<Result<_, _>>()?;
+                let n = r.count(8)?;
+                let geo_double_params = (0..n).map(|_| r.f64()).collect::<Result<_, _>>()?;
+                let n = r.count(1)?;
+                let geo_ascii_params = String::from_utf8_lossy(r.bytes(n)?).into_owned();
+                Some(Georef {
+                    geotransform,
+                    geo_key_directory,
+                    geo_double_params,
+                    geo_ascii_params,
+                })
+            }
+            _ => return Err(CodecError::InvalidHeader("georeferencing flag".into())),
+        };
+        if r.pos != r.data.len() {
+            return Err(CodecError::InvalidHeader(
+                "trailing bytes in the header".into(),
+            ));
+        }
+        Ok((
+            Header {
+                width,
+                height,
+                sample_type,
+                wavelet,
+                levels,
+                mode,
+                mapping: ValueMapping { offset, step },
+                max_error,
+                coefficient_step,
+                nodata,
+                valid_range,
+                top_plane,
+                bands,
+                payload_len,
+                mask_len,
+                residual_len,
+                passes,
+                georef,
+            },
+            header_len,
+        ))
+    }
+}
+
+/// Appends `value` as LEB128 (7 bits a byte, low first, high bit = more follows).
+fn write_varint(out: &mut Vec<u8>, mut value: u64) {
+    while value >= 0x80 {
+        out.push((value as u8) | 0x80);
+        value >>= 7;
+    }
+    out.push(value as u8);
+}
+
+/// Largest header this build writes (georeferencing included) — a bigger claimed length
+/// is corruption, not truncation.
+const MAX_HEADER_LEN: usize = 1 << 24;
+
+/// Bounds-checked little-endian reader.
+struct Reader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn bytes(&mut self, n: usize) -> Result<&'a [u8], CodecError> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.data.len());
+        let end = end.ok_or(CodecError::TruncatedHeader(
+            "header fields run past its end",
+        ))?;
+        let slice = &self.data[self.pos..end];
+        self.pos = end;
+        Ok(slice)
+    }
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], CodecError> {
+        Ok(self.bytes(N)?.try_into().expect("exact length"))
+    }
+    fn u8(&mut self) -> Result<u8, CodecError> {
+        Ok(self.bytes(1)?[0])
+    }
+    fn u16(&mut self) -> Result<u16, CodecError> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+    fn u32(&mut self) -> Result<u32, CodecError> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+    fn u64(&mut self) -> Result<u64, CodecError> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+    fn varint(&mut self) -> Result<u64, CodecError> {
+        let mut value = 0u64;
+        for shift in (0..64).step_by(7) {
+            let byte = self.u8()?;
+            value |= ((byte & 0x7F) as u64) << shift;
+            if byte & 0x80 == 0 {
+                return Ok(value);
+            }
+        }
+        Err(CodecError::InvalidHeader(
+            "varint longer than 64 bits".into(),
+        ))
+    }
+    fn f64(&mut self) -> Result<f64, CodecError> {
+        Ok(f64::from_le_bytes(self.array()?))
+    }
+    /// A u32 element count whose elements of `size` bytes must fit in what is left.
+    fn count(&mut self, size: usize) -> Result<usize, CodecError> {
+        let n = self.u32()? as usize;
+        if n.saturating_mul(size) > self.data.len() - self.pos {
+            return Err(CodecError::InvalidHeader(
+                "a georeferencing list runs past the header".into(),
+            ));
+        }
+        Ok(n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_header() -> Header {
+        Header {
+            width: 403,
+            height: 344,
+            sample_type: SampleType::I16,
+            wavelet: Wavelet::Int53,
+            levels: 6,
+            mode: Mode::Lossless,
+            mapping: ValueMapping {
+                offset: 236.0,
+                step: 1.0,
+            },
+            max_error: 0.0,
+            coefficient_step: 1.0,
+            nodata: Some(f64::NAN),
+            valid_range: (236.0, 1076.0),
+            top_plane: Some(17),
+            bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
+            payload_len: 12345,
+            mask_len: 17,
+            residual_len: 0,
+            passes: vec![
+                PassRecord {
+                    plane: 17,
+                    end_byte: 3,
+                    squared_error: 1e9,
+                },
+                PassRecord {
+                    plane: 16,
+                    end_byte: 300,
+                    squared_error: 0.25,
+                },
+            ],
+            georef: Some(Georef {
+                geotransform: [-84.4, 0.000833, 0.0, 36.7, 0.0, -0.000833],
+                geo_key_directory: vec![1, 1, 0, 1, 1024, 0, 1, 2],
+                geo_double_params: vec![6378137.0],
+                geo_ascii_params: "WGS 84|".into(),
+            }),
+        }
+    }
+
+    #[test]
+    fn header_round_trips() {
+        let h = sample_header();
+        let bytes = h.to_bytes();
+        let (parsed, len) = Header::parse(&bytes).unwrap();
+        assert_eq!(len, bytes.len());
+        // NaN != NaN: compare the nodata bits separately.
+        assert_eq!(parsed.nodata.map(f64::to_bits), h.nodata.map(f64::to_bits));
+        assert_eq!(
+            Header {
+                nodata: None,
+                ..parsed
+            },
+            Header { nodata: None, ..h }
+        );
+    }
+
+    #[test]
+    fn every_truncation_and_bit_flip_is_an_error() {
+        let bytes = sample_header().to_bytes();
+        for cut in 0..bytes.len() {
+            assert!(Header::parse(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        for i in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut damaged = bytes.clone();
+                damaged[i] ^= 1 << bit;
+                assert!(
+                    Header::parse(&damaged).is_err(),
+                    "flip at byte {i} bit {bit}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn wrong_magic_and_version() {
+        assert!(matches!(
+            Header::parse(b"GIF89a.........."),
+            Err(CodecError::BadMagic)
+        ));
+        let mut bytes = sample_header().to_bytes();
+        bytes[8] = 9;
+        assert!(matches!(
+            Header::parse(&bytes),
+            Err(CodecError::UnsupportedVersion(9, 1))
+        ));
+    }
+}

@@ -1,0 +1,425 @@
+//! Adaptive binary arithmetic coding.
+//!
+//! A range coder in the style of LZMA's (32-bit range, byte-wise output with carry
+//! propagation through a cached byte) driven by adaptive probability models
+//! ([`BitModel`]). Each model mixes a fast- and a slow-adapting estimate, which tracks both
+//! quickly changing and stationary statistics.
+//!
+//! Encoders implement [`BitSink`]; besides the real [`ArithmeticEncoder`] there is a
+//! [`BitCounter`] that only sums the ideal code length, so the EZW coder can measure what a
+//! context buys without producing bytes.
+//!
+//! The decoder reads zeros past the end of its input and reports [`ArithmeticDecoder::exhausted`]
+//! as soon as a decision depended on such a padding byte: the embedded decoder stops there,
+//! which is how a truncated stream decodes to the best image its bytes allow.
+
+/// Probabilities are 16-bit fixed point: `p0 / 65536` is the probability of a 0 bit.
+const PROB_BITS: u32 = 16;
+const PROB_ONE: u32 = 1 << PROB_BITS;
+/// Renormalise when the range drops below 2^24.
+const TOP: u32 = 1 << 24;
+/// Adaptation rates (right shifts) of the fast and slow estimates.
+const FAST_RATE: u32 = 4;
+const SLOW_RATE: u32 = 7;
+
+/// An adaptive estimate of the probability that the next bit in its context is 0.
+#[derive(Debug, Clone, Copy)]
+pub struct BitModel {
+    fast: u16,
+    slow: u16,
+}
+
+impl Default for BitModel {
+    fn default() -> Self {
+        BitModel::new()
+    }
+}
+
+impl BitModel {
+    /// A model with no knowledge (p = 1/2).
+    pub const fn new() -> BitModel {
+        BitModel {
+            fast: 1 << 15,
+            slow: 1 << 15,
+        }
+    }
+
+    /// Probability of a 0 bit, in 1/65536 units, clamped to `[32, 65504]`.
+    #[inline]
+    pub fn p0(&self) -> u32 {
+        let p = (self.fast as u32 + self.slow as u32) >> 1;
+        p.clamp(32, PROB_ONE - 32)
+    }
+
+    /// Updates the model after coding `bit`.
+    #[inline]
+    pub fn update(&mut self, bit: bool) {
+        if bit {
+            self.fast -= self.fast >> FAST_RATE;
+            self.slow -= self.slow >> SLOW_RATE;
+        } else {
+            self.fast += ((PROB_ONE - 1) as u16 - self.fast) >> FAST_RATE;
+            self.slow += ((PROB_ONE - 1) as u16 - self.slow) >> SLOW_RATE;
+        }
+    }
+}
+
+/// Anything that can consume modelled binary decisions: the real encoder or a bit counter.
+pub trait BitSink {
+    /// Codes `bit` with the probability held by `model`, then adapts the model.
+    fn encode(&mut self, bit: bool, model: &mut BitModel);
+    /// Codes `bit` with a fixed probability of 1/2 (no model).
+    fn encode_raw(&mut self, bit: bool);
+    /// Bytes produced so far, including bytes still held back for carry propagation.
+    fn bytes_so_far(&self) -> usize;
+}
+
+/// The range encoder.
+#[derive(Debug)]
+pub struct ArithmeticEncoder {
+    low: u64,
+    range: u32,
+    cache: u8,
+    cache_size: u64,
+    out: Vec<u8>,
+}
+
+impl Default for ArithmeticEncoder {
+    fn default() -> Self {
+        ArithmeticEncoder::new()
+    }
+}
+
+impl ArithmeticEncoder {
+    /// A fresh encoder with an empty output.
+    pub fn new() -> ArithmeticEncoder {
+        ArithmeticEncoder {
+            low: 0,
+            range: u32::MAX,
+            cache: 0,
+            cache_size: 1,
+            out: Vec::new(),
+        }
+    }
+
+    #[inline]
+    fn shift_low(&mut self) {
+        if (self.low as u32) < 0xFF00_0000 || (self.low >> 32) != 0 {
+            let carry = (self.low >> 32) as u8;
+            let mut byte = self.cache;
+            loop {
+                self.out.push(byte.wrapping_add(carry));
+                byte = 0xFF;
+                self.cache_size -= 1;
+                if self.cache_size == 0 {
+                    break;
+                }
+            }
+            self.cache = (self.low >> 24) as u8;
+        }
+        self.cache_size += 1;
+        self.low = (self.low & 0x00FF_FFFF) << 8;
+    }
+
+    #[inline]
+    fn encode_with_bound(&mut self, bit: bool, bound: u32) {
+        if bit {
+            self.low += bound as u64;
+            self.range -= bound;
+        } else {
+            self.range = bound;
+        }
+        while self.range < TOP {
+            self.range <<= 8;
+            self.shift_low();
+        }
+    }
+
+    /// Flushes the coder state and returns the bytes. The first byte of a range-coded
+    /// stream is always 0 and is dropped here (the decoder supplies it).
+    pub fn finish(mut self) -> Vec<u8> {
+        for _ in 0..5 {
+            self.shift_low();
+        }
+        let mut out = self.out;
+        out.remove(0);
+        // Trailing zero bytes carry no information: the decoder pads with zeros.
+        while out.last() == Some(&0) {
+            out.pop();
+        }
+        out
+    }
+}
+
+impl BitSink for ArithmeticEncoder {
+    #[inline]
+    fn encode(&mut self, bit: bool, model: &mut BitModel) {
+        let bound = (self.range >> PROB_BITS) * model.p0();
+        model.update(bit);
+        self.encode_with_bound(bit, bound);
+    }
+
+    #[inline]
+    fn encode_raw(&mut self, bit: bool) {
+        let bound = self.range >> 1;
+        self.encode_with_bound(bit, bound);
+    }
+
+    fn bytes_so_far(&self) -> usize {
+        // Bytes already written minus the leading zero, plus held-back cache bytes and
+        // the bytes of `low` that a flush would emit.
+        self.out.len() + self.cache_size as usize + 4 - 1
+    }
+}
+
+/// Sums the ideal code length (−log2 p) of every decision instead of producing bytes.
+#[derive(Debug, Default, Clone)]
+pub struct BitCounter {
+    bits: f64,
+}
+
+impl BitCounter {
+    /// A counter at zero.
+    pub fn new() -> BitCounter {
+        BitCounter::default()
+    }
+
+    /// Total ideal code length so far, in bits.
+    pub fn bits(&self) -> f64 {
+        self.bits
+    }
+}
+
+impl BitSink for BitCounter {
+    #[inline]
+    fn encode(&mut self, bit: bool, model: &mut BitModel) {
+        let p0 = model.p0() as f64 / PROB_ONE as f64;
+        let p = if bit { 1.0 - p0 } else { p0 };
+        self.bits -= p.log2();
+        model.update(bit);
+    }
+
+    fn encode_raw(&mut self, _bit: bool) {
+        self.bits += 1.0;
+    }
+
+    fn bytes_so_far(&self) -> usize {
+        (self.bits / 8.0).ceil() as usize
+    }
+}
+
+/// The range decoder. Reads zeros past the end of its input.
+#[derive(Debug)]
+pub struct ArithmeticDecoder<'a> {
+    data: &'a [u8],
+    pos: usize,
+    range: u32,
+    code: u32,
+    complete: bool,
+}
+
+impl<'a> ArithmeticDecoder<'a> {
+    /// Starts decoding `data`, the output of [`ArithmeticEncoder::finish`] or a prefix of it.
+    ///
+    /// `complete` says that `data` is the whole stream: its trailing zero bytes were
+    /// stripped by the encoder, so the zero padding read past its end is genuine and
+    /// [`ArithmeticDecoder::exhausted`] never becomes true.
+    pub fn new(data: &'a [u8], complete: bool) -> ArithmeticDecoder<'a> {
+        let mut decoder = ArithmeticDecoder {
+            data,
+            pos: 0,
+            range: u32::MAX,
+            code: 0,
+            complete,
+        };
+        for _ in 0..4 {
+            decoder.code = (decoder.code << 8) | decoder.next_byte() as u32;
+        }
+        decoder
+    }
+
+    #[inline]
+    fn next_byte(&mut self) -> u8 {
+        let byte = self.data.get(self.pos).copied().unwrap_or(0);
+        self.pos += 1;
+        byte
+    }
+
+    /// True once the decoder's window holds bytes past the end of a truncated input: the
+    /// last decision returned may differ from what the encoder coded. Every decision
+    /// returned while this was still false is exact.
+    #[inline]
+    pub fn exhausted(&self) -> bool {
+        !self.complete && self.pos > self.data.len()
+    }
+
+    /// Bytes of input consumed so far (may exceed the input length by the zero padding).
+    pub fn position(&self) -> usize {
+        self.pos
+    }
+
+    #[inline]
+    fn decode_with_bound(&mut self, bound: u32) -> bool {
+        let bit = if self.code < bound {
+            self.range = bound;
+            false
+        } else {
+            self.code -= bound;
+            self.range -= bound;
+            true
+        };
+        while self.range < TOP {
+            self.range <<= 8;
+            self.code = (self.code << 8) | self.next_byte() as u32;
+        }
+        bit
+    }
+
+    /// Decodes one bit with `model` and adapts it.
+    #[inline]
+    pub fn decode(&mut self, model: &mut BitModel) -> bool {
+        let bound = (self.range >> PROB_BITS) * model.p0();
+        let bit = self.decode_with_bound(bound);
+        model.update(bit);
+        bit
+    }
+
+    /// Decodes one bit coded with [`BitSink::encode_raw`].
+    #[inline]
+    pub fn decode_raw(&mut self) -> bool {
+        let bound = self.range >> 1;
+        self.decode_with_bound(bound)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random bits with a skewed distribution.
+    fn bits(n: usize, seed: u64, p_one: f64) -> Vec<bool> {
+        let mut state = seed;
+        (0..n)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                ((state >> 11) as f64 / (1u64 << 53) as f64) < p_one
+            })
+            .collect()
+    }
+
+    fn encode_all(input: &[bool], contexts: usize) -> Vec<u8> {
+        let mut enc = ArithmeticEncoder::new();
+        let mut models = vec![BitModel::new(); contexts];
+        for (i, &b) in input.iter().enumerate() {
+            if i % 7 == 3 {
+                enc.encode_raw(b);
+            } else {
+                enc.encode(b, &mut models[i % contexts]);
+            }
+        }
+        enc.finish()
+    }
+
+    #[test]
+    fn round_trip_various_skews() {
+        for (seed, p) in [(1, 0.5), (2, 0.05), (3, 0.95), (4, 0.001), (5, 0.3)] {
+            let input = bits(20_000, seed, p);
+            let stream = encode_all(&input, 3);
+            let mut dec = ArithmeticDecoder::new(&stream, true);
+            let mut models = vec![BitModel::new(); 3];
+            for (i, &b) in input.iter().enumerate() {
+                let got = if i % 7 == 3 {
+                    dec.decode_raw()
+                } else {
+                    dec.decode(&mut models[i % 3])
+                };
+                assert_eq!(got, b, "bit {i} with p={p}");
+            }
+        }
+    }
+
+    #[test]
+    fn skewed_bits_compress() {
+        let input = bits(80_000, 9, 0.02);
+        let mut enc = ArithmeticEncoder::new();
+        let mut model = BitModel::new();
+        for &b in &input {
+            enc.encode(b, &mut model);
+        }
+        let bytes = enc.finish().len();
+        // Entropy of p = 0.02 is 0.1414 bits: 80 000 bits -> ~1414 bytes.
+        assert!(bytes < 1600, "{bytes} bytes");
+    }
+
+    #[test]
+    fn counter_agrees_with_encoder() {
+        let input = bits(50_000, 11, 0.1);
+        let mut enc = ArithmeticEncoder::new();
+        let mut counter = BitCounter::new();
+        let (mut m1, mut m2) = (BitModel::new(), BitModel::new());
+        for &b in &input {
+            enc.encode(b, &mut m1);
+            counter.encode(b, &mut m2);
+        }
+        let real = enc.finish().len() as f64 * 8.0;
+        assert!(
+            (real - counter.bits()).abs() < 64.0,
+            "{real} vs {}",
+            counter.bits()
+        );
+    }
+
+    #[test]
+    fn every_prefix_decodes_a_correct_prefix_of_decisions() {
+        let input = bits(3_000, 21, 0.2);
+        let stream = encode_all(&input, 2);
+        let mut previous = 0;
+        for cut in 0..=stream.len() {
+            let mut dec = ArithmeticDecoder::new(&stream[..cut], cut == stream.len());
+            let mut models = vec![BitModel::new(); 2];
+            let mut correct = 0;
+            for (i, &b) in input.iter().enumerate() {
+                let got = if i % 7 == 3 {
+                    dec.decode_raw()
+                } else {
+                    dec.decode(&mut models[i % 2])
+                };
+                if dec.exhausted() {
+                    break;
+                }
+                assert_eq!(
+                    got, b,
+                    "cut {cut}: bit {i} decoded wrongly before exhaustion"
+                );
+                correct += 1;
+            }
+            if cut == stream.len() {
+                assert_eq!(
+                    correct,
+                    input.len(),
+                    "the complete stream decodes every bit"
+                );
+            }
+            assert!(
+                correct >= previous,
+                "a longer prefix never decodes fewer bits"
+            );
+            previous = correct;
+        }
+    }
+
+    #[test]
+    fn bytes_so_far_tracks_output() {
+        let input = bits(40_000, 5, 0.3);
+        let mut enc = ArithmeticEncoder::new();
+        let mut model = BitModel::new();
+        for &b in &input {
+            enc.encode(b, &mut model);
+        }
+        let estimate = enc.bytes_so_far();
+        let real = enc.finish().len();
+        assert!(estimate.abs_diff(real) <= 5, "{estimate} vs {real}");
+    }
+}

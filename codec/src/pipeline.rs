@@ -1,0 +1,608 @@
+//! Whole-file encode and decode: raster → `.ezw` bytes → raster.
+
+use crate::container::{Header, Mode, PAYLOAD_CUT};
+use crate::error::CodecError;
+use crate::ezw::{self, CoefficientLayout, Decoder, Midpoint, MAX_COEFFICIENT_PLANE};
+use crate::mask::{decode_mask, encode_mask};
+use crate::quantize::{self, IntegerPlane, ValueMapping};
+use crate::raster::{Raster, SampleType, Samples};
+use crate::residual::{decode_residuals, encode_residuals};
+use crate::wavelet::{self, Wavelet};
+
+/// What the encoder should achieve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Quality {
+    /// Bit-exact (5/3) — or, with 9/7, as fine as the coefficient quantiser allows.
+    Lossless,
+    /// Every valid sample within this many data units (5/3).
+    MaxError(f64),
+    /// Floats quantised to this step (error ≤ step / 2) (5/3).
+    Precision(f64),
+}
+
+/// Encoder settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EncodeOptions {
+    /// The transform; see [`EncodeOptions::new`] for the defaults.
+    pub wavelet: Wavelet,
+    /// Decomposition levels (`None`: [`wavelet::default_levels`]).
+    pub levels: Option<u32>,
+    /// Target quality of the complete stream.
+    pub quality: Quality,
+    /// Total file size to stop at, in bytes (the stream is cut there exactly).
+    pub budget_bytes: Option<u64>,
+}
+
+impl EncodeOptions {
+    /// Defaults as the command line has them: 9/7 when only a byte budget is given,
+    /// 5/3 for lossless and error-bounded coding.
+    pub fn new(quality: Quality, budget_bytes: Option<u64>) -> EncodeOptions {
+        let wavelet = match (quality, budget_bytes) {
+            (Quality::Lossless, Some(_)) => Wavelet::Cdf97,
+            _ => Wavelet::Int53,
+        };
+        EncodeOptions {
+            wavelet,
+            levels: None,
+            quality,
+            budget_bytes,
+        }
+    }
+}
+
+/// The result of encoding.
+#[derive(Debug, Clone)]
+pub struct Encoded {
+    /// The complete `.ezw` file.
+    pub bytes: Vec<u8>,
+    /// Its header.
+    pub header: Header,
+    /// Bytes taken by the header.
+    pub header_len: usize,
+}
+
+/// Encodes a raster into a `.ezw` file.
+pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    if width == 0 || height == 0 || raster.samples.len() != width * height {
+        return Err(CodecError::Dimensions {
+            width: width as u64,
+            height: height as u64,
+        });
+    }
+    if width > u32::MAX as usize || height > u32::MAX as usize {
+        return Err(CodecError::Dimensions {
+            width: width as u64,
+            height: height as u64,
+        });
+    }
+    let max_levels = wavelet::max_levels(width, height);
+    let levels = options
+        .levels
+        .unwrap_or_else(|| wavelet::default_levels(width, height));
+    if levels > max_levels {
+        return Err(CodecError::InvalidParameters(format!(
+            "{levels} levels requested; a {width}x{height} raster allows at most {max_levels}"
+        )));
+    }
+    let mask = raster.valid_mask();
+    let has_voids = mask.iter().any(|&m| !m);
+    let valid_range = quantize::valid_range(raster, &mask).unwrap_or((0.0, 0.0));
+    let subbands = wavelet::subbands(width, height, levels);
+    // Empty subbands have no norm to speak of: give them 1 so shifts and scales stay sane.
+    let norms: Vec<f64> = wavelet::synthesis_norms(options.wavelet, width, height, levels)
+        .into_iter()
+        .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
+        .collect();
+
+    let prepared = match options.wavelet {
+        Wavelet::Int53 => prepare_53(raster, &mask, options.quality, &norms)?,
+        Wavelet::Cdf97 => {
+            if options.quality != Quality::Lossless {
+                return Err(CodecError::InvalidParameters(
+                    "the 9/7 wavelet is lossy: error bounds need the 5/3 wavelet".into(),
+                ));
+            }
+            prepare_97(raster, &mask, &norms)
+        }
+    };
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    let mask_bytes = if has_voids {
+        encode_mask(&mask, width)
+    } else {
+        Vec::new()
+    };
+    let residual_bytes = if prepared.residuals.is_empty() {
+        Vec::new()
+    } else {
+        encode_residuals(&prepared.residuals)
+    };
+
+    let top = ezw::top_plane(&layout, &prepared.coefficients);
+    let mut header = Header {
+        width: width as u32,
+        height: height as u32,
+        sample_type: raster.sample_type(),
+        wavelet: options.wavelet,
+        levels: levels as u8,
+        mode: prepared.mode,
+        mapping: prepared.mapping,
+        max_error: prepared.max_error,
+        coefficient_step: prepared.coefficient_step,
+        nodata: raster
+            .nodata
+            .or((has_voids && raster.sample_type() == SampleType::F32).then_some(f64::NAN)),
+        valid_range,
+        top_plane: top.map(|t| t as u8),
+        bands: prepared
+            .shifts
+            .iter()
+            .zip(&prepared.scales)
+            .map(|(&s, &c)| (s as u8, c))
+            .collect(),
+        payload_len: 0,
+        mask_len: mask_bytes.len() as u32,
+        residual_len: residual_bytes.len() as u32,
+        passes: Vec::new(),
+        georef: raster.georef.clone(),
+    };
+    // With a budget, the payload may use what the smallest possible header leaves.
+    let budget = options.budget_bytes.map(|b| b as usize);
+    let fixed = header.to_bytes().len() + mask_bytes.len();
+    if let Some(total) = budget {
+        if total < fixed {
+            return Err(CodecError::InvalidParameters(format!(
+                "a budget of {total} bytes is smaller than the header and nodata mask ({fixed} bytes)"
+            )));
+        }
+    }
+    let payload = ezw::encode(
+        &layout,
+        &prepared.coefficients,
+        &prepared.distortion_weights,
+        prepared.midpoint,
+        budget.map(|total| total - fixed),
+    );
+    let mut payload_bytes = payload.bytes;
+    let fits = |header: &Header, payload_len: usize| {
+        budget.is_none_or(|total| {
+            header.to_bytes().len() + mask_bytes.len() + payload_len + residual_bytes.len() <= total
+        })
+    };
+    header.passes = payload.passes.clone();
+    header.payload_len = payload_bytes.len() as u64;
+    let cut = !payload.complete || !fits(&header, payload_bytes.len());
+    if cut {
+        // Cut the payload so header + mask + payload is exactly the budget. The header
+        // lists only the passes the kept payload holds, so its size depends on the cut:
+        // iterate to the fixed point (it shrinks monotonically, in a few steps).
+        let total = budget.expect("only a budget cuts a stream");
+        header.payload_len = PAYLOAD_CUT;
+        header.residual_len = 0;
+        header.mode = Mode::Lossy;
+        header.max_error = f64::INFINITY;
+        let mut keep = payload_bytes.len();
+        loop {
+            header.passes = payload
+                .passes
+                .iter()
+                .copied()
+                .filter(|p| p.end_byte <= keep as u64)
+                .collect();
+            let room = total - header.to_bytes().len() - mask_bytes.len();
+            if room >= keep {
+                // Dropping a pass record may leave a few bytes of room: fill them (a pass
+                // they complete simply goes unlisted).
+                keep = room.min(payload_bytes.len());
+                break;
+            }
+            keep = room;
+        }
+        payload_bytes.truncate(keep);
+    }
+    let header_bytes = header.to_bytes();
+    let mut bytes = Vec::with_capacity(
+        header_bytes.len() + mask_bytes.len() + payload_bytes.len() + residual_bytes.len(),
+    );
+    bytes.extend_from_slice(&header_bytes);
+    bytes.extend_from_slice(&mask_bytes);
+    bytes.extend_from_slice(&payload_bytes);
+    if !cut {
+        bytes.extend_from_slice(&residual_bytes);
+    }
+    Ok(Encoded {
+        header_len: header_bytes.len(),
+        bytes,
+        header,
+    })
+}
+
+/// Coefficients and parameters ready for the EZW coder.
+struct Prepared {
+    coefficients: Vec<i32>,
+    shifts: Vec<u32>,
+    scales: Vec<f64>,
+    distortion_weights: Vec<f64>,
+    midpoint: Midpoint,
+    mapping: ValueMapping,
+    mode: Mode,
+    max_error: f64,
+    coefficient_step: f64,
+    residuals: Vec<i32>,
+}
+
+fn prepare_53(
+    raster: &Raster,
+    mask: &[bool],
+    quality: Quality,
+    norms: &[f64],
+) -> Result<Prepared, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let (plane, mode, max_error) = match (&raster.samples, quality) {
+        (Samples::F32(values), Quality::Lossless) => {
+            match quantize::detect_float_grid(values, mask) {
+                Some(step) => (quantize::float_plane(values, mask, step, false, 0.0)?, Mode::Lossless, 0.0),
+                None => {
+                    let (lo, hi) = quantize::valid_range(raster, mask).unwrap_or((0.0, 0.0));
+                    let step = quantize::default_float_step(lo, hi);
+                    (quantize::float_plane(values, mask, step, true, 0.0)?, Mode::Lossless, 0.0)
+                }
+            }
+        }
+        (Samples::F32(values), Quality::MaxError(e)) => {
+            check_positive(e, "--max-error")?;
+            (bounded_float_plane(values, mask, e)?, Mode::MaxError, e)
+        }
+        (Samples::F32(values), Quality::Precision(step)) => {
+            check_positive(step, "--precision")?;
+            // The grid's half step, plus the rounding of the reconstruction to f32.
+            let largest = values.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| v.abs() as f64).fold(0.0, f64::max);
+            let bound = step / 2.0 + largest * f32::EPSILON as f64;
+            (quantize::float_plane(values, mask, step, false, bound)?, Mode::Precision, bound)
+        }
+        (_, Quality::Lossless) => (quantize::integer_plane(raster, mask, 0.0)?, Mode::Lossless, 0.0),
+        (_, Quality::MaxError(e)) => {
+            check_positive(e, "--max-error")?;
+            let plane = quantize::integer_plane(raster, mask, e)?;
+            let mode = if e >= 1.0 { Mode::MaxError } else { Mode::Lossless };
+            (plane, mode, e.floor())
+        }
+        (_, Quality::Precision(_)) => {
+            return Err(CodecError::InvalidParameters(
+                "--precision applies to float rasters; integer rasters are coded exactly or with --max-error".into(),
+            ))
+        }
+    };
+    let IntegerPlane {
+        mut values,
+        mapping,
+        residuals,
+    } = plane;
+    if mask.iter().any(|&m| !m) {
+        let mut filled: Vec<f64> = values.iter().map(|&v| v as f64).collect();
+        quantize::fill_voids(&mut filled, width, height, mask);
+        for (v, f) in values.iter_mut().zip(filled) {
+            *v = f.round() as i32;
+        }
+    }
+    let levels = level_count(norms.len());
+    wavelet::forward_53(&mut values, width, height, levels);
+    // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
+    let smallest = norms.iter().cloned().fold(f64::INFINITY, f64::min);
+    let shifts: Vec<u32> = norms
+        .iter()
+        .map(|&n| (n / smallest).log2().round().max(0.0) as u32)
+        .collect();
+    let step2 = mapping.step * mapping.step;
+    Ok(Prepared {
+        coefficients: values,
+        scales: vec![1.0; norms.len()],
+        distortion_weights: norms.iter().map(|n| n * n * step2).collect(),
+        shifts,
+        midpoint: Midpoint::Integer,
+        mapping,
+        mode,
+        max_error,
+        coefficient_step: 1.0,
+        residuals,
+    })
+}
+
+fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
+    let (width, height) = (raster.width, raster.height);
+    let valid = mask.iter().filter(|&&m| m).count().max(1);
+    let mean = (0..raster.len())
+        .filter(|&i| mask[i])
+        .map(|i| raster.samples.get_f64(i))
+        .sum::<f64>()
+        / valid as f64;
+    let mut centred: Vec<f64> = (0..raster.len())
+        .map(|i| {
+            if mask[i] {
+                raster.samples.get_f64(i) - mean
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    quantize::fill_voids(&mut centred, width, height, mask);
+    let mut data: Vec<f32> = centred.iter().map(|&v| v as f32).collect();
+    drop(centred);
+    let levels = level_count(norms.len());
+    wavelet::forward_97(&mut data, width, height, levels);
+    // Scale every subband by its norm so one quantiser step means the same pixel error
+    // everywhere, then quantise finely enough that the cut, not the quantiser, limits
+    // the quality: the largest scaled coefficient gets 30 bits.
+    let subbands = wavelet::subbands(width, height, levels);
+    // The header stores the scales as f32: quantise with exactly those values.
+    let norms: Vec<f64> = norms.iter().map(|&n| n as f32 as f64).collect();
+    let mut largest = 0f64;
+    for (sub, &norm) in subbands.iter().zip(&norms) {
+        for y in 0..sub.height {
+            let row = (sub.y0 + y) * width + sub.x0;
+            for &c in &data[row..row + sub.width] {
+                largest = largest.max((c as f64 * norm).abs());
+            }
+        }
+    }
+    let step = if largest > 0.0 {
+        largest / (1u64 << MAX_COEFFICIENT_PLANE) as f64 * 1.0001
+    } else {
+        1.0
+    };
+    let mut coefficients = vec![0i32; data.len()];
+    for (sub, &norm) in subbands.iter().zip(&norms) {
+        let scale = norm / step;
+        for y in 0..sub.height {
+            let row = (sub.y0 + y) * width + sub.x0;
+            for x in row..row + sub.width {
+                let q = (data[x] as f64 * scale).abs().floor() as i32;
+                coefficients[x] = if data[x] < 0.0 { -q } else { q };
+            }
+        }
+    }
+    Prepared {
+        coefficients,
+        shifts: vec![0; norms.len()],
+        distortion_weights: vec![step * step; norms.len()],
+        scales: norms,
+        midpoint: Midpoint::Real,
+        mapping: ValueMapping {
+            offset: mean,
+            step: 1.0,
+        },
+        mode: Mode::Lossy,
+        max_error: f64::INFINITY,
+        coefficient_step: step,
+        residuals: Vec::new(),
+    }
+}
+
+/// Quantises floats so every sample stays within `e` after rounding back to f32: the grid
+/// step starts just under `2e` and shrinks until the check passes.
+fn bounded_float_plane(values: &[f32], mask: &[bool], e: f64) -> Result<IntegerPlane, CodecError> {
+    let mut step = 2.0 * e * 0.999;
+    let mut last_error = None;
+    for _ in 0..8 {
+        match quantize::float_plane(values, mask, step, false, e) {
+            Ok(plane) => return Ok(plane),
+            Err(err) => last_error = Some(err),
+        }
+        step *= 0.75;
+    }
+    Err(last_error.expect("at least one attempt"))
+}
+
+fn check_positive(value: f64, what: &str) -> Result<(), CodecError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(CodecError::InvalidParameters(format!(
+            "{what} must be a positive number, got {value}"
+        )))
+    }
+}
+
+/// Levels from the number of subbands (1 + 3·levels).
+fn level_count(bands: usize) -> u32 {
+    (bands.saturating_sub(1) / 3) as u32
+}
+
+/// Resource limits checked before the decoder allocates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Largest `width × height` accepted.
+    pub max_samples: u64,
+    /// Largest working memory (bytes) the decode may need.
+    pub max_memory: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_samples: 1 << 30,
+            max_memory: 16 << 30,
+        }
+    }
+}
+
+/// Decoder settings.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DecodeOptions {
+    /// Decode only the first this many bytes of the file (progressive decoding).
+    pub max_bytes: Option<u64>,
+    /// Stop after this many passes.
+    pub max_passes: Option<u32>,
+    /// Resource limits.
+    pub limits: Limits,
+}
+
+/// A decoded stream.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    /// The reconstructed raster, with the source's type, nodata and georeferencing.
+    pub raster: Raster,
+    /// The file's header.
+    pub header: Header,
+    /// Passes decoded completely.
+    pub passes_decoded: u32,
+    /// Whether every bit of the stream was decoded (the mode's guarantee holds).
+    pub complete: bool,
+    /// File bytes the decode used.
+    pub bytes_used: u64,
+}
+
+/// Working memory a decode needs, in bytes (used for the limit check).
+pub fn decode_memory(header: &Header) -> u64 {
+    let n = header.sample_count();
+    // coefficients (4) + flags (1) + output samples + mask (1 when present).
+    n * (5 + header.sample_type.bytes() as u64 + (header.mask_len > 0) as u64)
+}
+
+/// Decodes a `.ezw` file, or as much of it as `options.max_bytes` (or the data) holds.
+pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
+    let data = match options.max_bytes {
+        Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],
+        _ => data,
+    };
+    let (header, header_len) = Header::parse(data)?;
+    let n = header.sample_count();
+    if n > options.limits.max_samples {
+        return Err(CodecError::LimitExceeded {
+            what: "sample count",
+            needed: n,
+            limit: options.limits.max_samples,
+        });
+    }
+    let memory = decode_memory(&header);
+    if memory > options.limits.max_memory {
+        return Err(CodecError::LimitExceeded {
+            what: "decoder memory",
+            needed: memory,
+            limit: options.limits.max_memory,
+        });
+    }
+    let (width, height) = (header.width as usize, header.height as usize);
+    let n = n as usize;
+    let mask_end = header_len + header.mask_len as usize;
+    let mask = if header.mask_len > 0 {
+        let bytes = data
+            .get(header_len..mask_end)
+            .ok_or(CodecError::TruncatedHeader(
+                "file ends inside the nodata mask",
+            ))?;
+        Some(decode_mask(bytes, width, n))
+    } else {
+        None
+    };
+    let available = data.len().saturating_sub(mask_end);
+    let (payload, payload_complete) = if header.payload_len == PAYLOAD_CUT {
+        (&data[mask_end.min(data.len())..], false)
+    } else {
+        let len = (header.payload_len as usize).min(available);
+        (
+            &data[mask_end..mask_end + len],
+            len as u64 == header.payload_len,
+        )
+    };
+    let levels = header.levels as u32;
+    let subbands = wavelet::subbands(width, height, levels);
+    let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
+    let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
+    let decoder = Decoder::run(
+        &layout,
+        payload,
+        payload_complete,
+        header.top_plane.map(u32::from),
+        options.max_passes,
+    );
+    let passes_decoded = decoder.passes_completed;
+    let ezw_complete = decoder.complete && payload_complete;
+    let mut values: Vec<f64> = match header.wavelet {
+        Wavelet::Int53 => {
+            let mut coefficients = decoder.integer_coefficients();
+            wavelet::inverse_53(&mut coefficients, width, height, levels);
+            coefficients
+                .into_iter()
+                .map(|q| header.mapping.value(q as f64))
+                .collect()
+        }
+        Wavelet::Cdf97 => {
+            let mut data = vec![0f32; n];
+            decoder.dequantise(Midpoint::Real, |i, v| data[i] = v as f32);
+            drop(decoder);
+            for (sub, &(_, band_scale)) in subbands.iter().zip(&header.bands) {
+                let scale = (header.coefficient_step / band_scale) as f32;
+                for y in 0..sub.height {
+                    let row = (sub.y0 + y) * width + sub.x0;
+                    data[row..row + sub.width]
+                        .iter_mut()
+                        .for_each(|c| *c *= scale);
+                }
+            }
+            wavelet::inverse_97(&mut data, width, height, levels);
+            data.into_iter()
+                .map(|x| header.mapping.value(x as f64))
+                .collect()
+        }
+    };
+    // Lossless floats off a grid: apply the exact residuals once everything else is there.
+    let residual_start = mask_end + payload.len();
+    let mut exact_floats: Option<Vec<f32>> = None;
+    if ezw_complete && header.residual_len > 0 && header.sample_type == SampleType::F32 {
+        if let Some(bytes) = data.get(residual_start..residual_start + header.residual_len as usize)
+        {
+            let valid_count = mask
+                .as_ref()
+                .map_or(n, |m| m.iter().filter(|&&v| v).count());
+            let residuals = decode_residuals(bytes, valid_count);
+            let mut out: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+            let mut next = residuals.into_iter();
+            for (i, value) in out.iter_mut().enumerate() {
+                if mask.as_ref().is_none_or(|m| m[i]) {
+                    let r = next.next().unwrap_or(0);
+                    *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
+                }
+            }
+            exact_floats = Some(out);
+        }
+    }
+    let residuals_complete = header.residual_len == 0 || exact_floats.is_some();
+    let samples = match exact_floats {
+        Some(mut floats) => {
+            if let Some(mask) = &mask {
+                let fill = header.nodata.unwrap_or(f64::NAN) as f32;
+                for (v, &m) in floats.iter_mut().zip(mask) {
+                    if !m {
+                        *v = fill;
+                    }
+                }
+            }
+            Samples::F32(floats)
+        }
+        None => {
+            if header.sample_type.is_integer() {
+                let (lo, hi) = header.sample_type.value_range();
+                values.iter_mut().for_each(|v| *v = v.clamp(lo, hi));
+            }
+            quantize::to_samples(header.sample_type, &values, mask.as_deref(), header.nodata)
+        }
+    };
+    let mut raster = Raster::new(width, height, samples)?;
+    raster.nodata = header.nodata;
+    raster.georef = header.georef.clone();
+    let bytes_used = (residual_start
+        + if residuals_complete {
+            header.residual_len as usize
+        } else {
+            0
+        })
+    .min(data.len()) as u64;
+    Ok(Decoded {
+        raster,
+        passes_decoded,
+        complete: ezw_complete && residuals_complete,
+        bytes_used,
+        header,
+    })
+}

@@ -1,0 +1,368 @@
+//! From source samples to the integer plane the 5/3 path codes (and back), and void filling.
+//!
+//! Every stream stores its samples as integers `q` with `value = offset + step · q`
+//! (computed in `f64`, then narrowed to the sample type):
+//! - integer sources, lossless: `offset = min`, `step = 1`;
+//! - integer sources, `--max-error E`: `step = 2⌊E⌋ + 1`, `q = ⌊(v − min + ⌊E⌋) / step⌋`,
+//!   which keeps every sample within `⌊E⌋` (the near-lossless quantiser of JPEG-LS);
+//! - float sources whose values all lie exactly on a decimal or binary grid (Terrain-RGB's
+//!   0.1 m, for instance): `offset = 0`, `step` = that grid, lossless;
+//! - other float sources, lossless: a grid `step` close to the data's precision plus an
+//!   exact per-sample residual on the `f32` bit patterns (see [`crate::residual`]);
+//! - float sources with `--max-error E` or `--precision STEP`: `step = 2E` (or STEP),
+//!   `q = round(v / step)`, checked sample by sample.
+//!
+//! Nodata samples are filled before the transform with a smooth continuation of their
+//! surroundings ([`fill_voids`]) so they cost almost nothing; the mask restores them.
+
+use crate::error::CodecError;
+use crate::raster::{Raster, SampleType, Samples};
+
+/// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
+pub const MAX_INTEGER_MAGNITUDE: f64 = (1u64 << 26) as f64;
+
+/// How stored integers map back to sample values: `value = offset + step · q`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ValueMapping {
+    /// Value of `q = 0`.
+    pub offset: f64,
+    /// Distance between consecutive `q`.
+    pub step: f64,
+}
+
+impl ValueMapping {
+    /// The sample value of integer `q`.
+    #[inline]
+    pub fn value(&self, q: f64) -> f64 {
+        self.offset + self.step * q
+    }
+}
+
+/// The integer plane of a raster, ready for the 5/3 transform.
+#[derive(Debug, Clone)]
+pub struct IntegerPlane {
+    /// `width × height` integers, voids filled.
+    pub values: Vec<i32>,
+    /// How to map them back.
+    pub mapping: ValueMapping,
+    /// For lossless floats off any grid: `bits(original) − bits(reconstruction)` of every
+    /// valid sample in raster order (empty otherwise).
+    pub residuals: Vec<i32>,
+}
+
+/// Value range (min, max) of the valid samples, `None` if there are none.
+pub fn valid_range(raster: &Raster, mask: &[bool]) -> Option<(f64, f64)> {
+    let mut range: Option<(f64, f64)> = None;
+    for (i, &valid) in mask.iter().enumerate() {
+        if valid {
+            let v = raster.samples.get_f64(i);
+            range = Some(match range {
+                None => (v, v),
+                Some((lo, hi)) => (lo.min(v), hi.max(v)),
+            });
+        }
+    }
+    range
+}
+
+/// Quantises an integer raster: lossless when `max_error < 1`, else with step `2⌊E⌋+1`.
+pub fn integer_plane(
+    raster: &Raster,
+    mask: &[bool],
+    max_error: f64,
+) -> Result<IntegerPlane, CodecError> {
+    let (min, max) = valid_range(raster, mask).unwrap_or((0.0, 0.0));
+    let e = max_error.max(0.0).floor();
+    let step = 2.0 * e + 1.0;
+    let span = ((max - min) / step).ceil();
+    if span > MAX_INTEGER_MAGNITUDE {
+        return Err(CodecError::InvalidParameters(format!(
+            "sample range {} is too wide for the integer coder (at most {} steps); use --max-error",
+            max - min,
+            MAX_INTEGER_MAGNITUDE
+        )));
+    }
+    let mapping = ValueMapping { offset: min, step };
+    let values = mask
+        .iter()
+        .enumerate()
+        .map(|(i, &valid)| {
+            if valid {
+                ((raster.samples.get_f64(i) - min + e) / step).floor() as i32
+            } else {
+                0
+            }
+        })
+        .collect();
+    Ok(IntegerPlane {
+        values,
+        mapping,
+        residuals: Vec::new(),
+    })
+}
+
+/// Grids tried for exact float data, coarsest first.
+const FLOAT_GRIDS: [f64; 14] = [
+    1.0, 0.5, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.03125, 0.025, 0.02, 0.01, 0.005, 0.001,
+];
+
+/// The coarsest grid on which every valid float sample lies exactly (as `f32`).
+pub fn detect_float_grid(values: &[f32], mask: &[bool]) -> Option<f64> {
+    let max_abs = values
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| m)
+        .map(|(v, _)| v.abs() as f64)
+        .fold(0.0, f64::max);
+    FLOAT_GRIDS.into_iter().find(|&step| {
+        max_abs / step < MAX_INTEGER_MAGNITUDE
+            && values
+                .iter()
+                .zip(mask)
+                .filter(|(_, &m)| m)
+                .all(|(&v, _)| ((v as f64 / step).round() * step) as f32 == v)
+    })
+}
+
+/// Quantises a float raster onto `step` (`q = round(v / step)`).
+///
+/// With `exact`, residuals make the round trip bit-exact; otherwise every sample is
+/// checked to lie within `max_error` of its reconstruction.
+pub fn float_plane(
+    values: &[f32],
+    mask: &[bool],
+    step: f64,
+    exact: bool,
+    max_error: f64,
+) -> Result<IntegerPlane, CodecError> {
+    if !(step.is_finite() && step > 0.0) {
+        return Err(CodecError::InvalidParameters(format!(
+            "invalid quantisation step {step}"
+        )));
+    }
+    let mapping = ValueMapping { offset: 0.0, step };
+    let mut out = Vec::with_capacity(values.len());
+    let mut residuals = Vec::new();
+    for (&v, &valid) in values.iter().zip(mask) {
+        if !valid {
+            out.push(0);
+            continue;
+        }
+        let q = (v as f64 / step).round();
+        if q.abs() > MAX_INTEGER_MAGNITUDE {
+            return Err(CodecError::InvalidParameters(format!(
+                "value {v} is more than {MAX_INTEGER_MAGNITUDE} steps of {step} from zero; use a larger --precision"
+            )));
+        }
+        let reconstructed = mapping.value(q) as f32;
+        if exact {
+            residuals.push(v.to_bits().wrapping_sub(reconstructed.to_bits()) as i32);
+        } else if (reconstructed as f64 - v as f64).abs() > max_error {
+            return Err(CodecError::InvalidParameters(format!(
+                "cannot keep {v} within {max_error} on a grid of {step} in f32"
+            )));
+        }
+        out.push(q as i32);
+    }
+    Ok(IntegerPlane {
+        values: out,
+        mapping,
+        residuals,
+    })
+}
+
+/// A power-of-two step near the data's own precision, for lossless floats off any grid:
+/// about 2^-16 of the value range (the residual then holds the few remaining bits).
+pub fn default_float_step(min: f64, max: f64) -> f64 {
+    let range = (max - min).max(f64::MIN_POSITIVE);
+    let largest = min.abs().max(max.abs()).max(1e-30);
+    let mut step = 2f64.powi((range / 65536.0).log2().floor() as i32);
+    // Keep |q| within the integer coder's limit.
+    while largest / step > MAX_INTEGER_MAGNITUDE {
+        step *= 2.0;
+    }
+    step
+}
+
+/// Fills the samples where `mask` is false with a smooth continuation of the valid ones:
+/// a push–pull pyramid (averages of valid samples, coarse to fine) followed by a few
+/// relaxation sweeps, so filled voids cost almost no bits after the transform.
+pub fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]) {
+    if mask.iter().all(|&m| m) {
+        return;
+    }
+    if !mask.iter().any(|&m| m) {
+        values.iter_mut().for_each(|v| *v = 0.0);
+        return;
+    }
+    // Push: pyramid of (sum, weight).
+    let mut levels: Vec<(usize, usize, Vec<f64>, Vec<f64>)> = Vec::new();
+    let sums: Vec<f64> = values
+        .iter()
+        .zip(mask)
+        .map(|(&v, &m)| if m { v } else { 0.0 })
+        .collect();
+    let weights: Vec<f64> = mask.iter().map(|&m| m as u8 as f64).collect();
+    levels.push((width, height, sums, weights));
+    while {
+        let (w, h, _, _) = levels.last().expect("pyramid has a level");
+        *w > 1 || *h > 1
+    } {
+        let (w, h, s, wt) = levels.last().expect("pyramid has a level");
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        let mut ns = vec![0.0; nw * nh];
+        let mut nwt = vec![0.0; nw * nh];
+        for y in 0..*h {
+            for x in 0..*w {
+                let j = (y / 2) * nw + x / 2;
+                ns[j] += s[y * w + x];
+                nwt[j] += wt[y * w + x];
+            }
+        }
+        levels.push((nw, nh, ns, nwt));
+    }
+    // Pull: each level's empty cells take their parent's average.
+    let mut parent: Option<(usize, Vec<f64>)> = None;
+    for (w, h, s, wt) in levels.into_iter().rev() {
+        let mut avg = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                avg[i] = if wt[i] > 0.0 {
+                    s[i] / wt[i]
+                } else if let Some((pw, ref pa)) = parent {
+                    pa[(y / 2) * pw + x / 2]
+                } else {
+                    0.0
+                };
+            }
+        }
+        parent = Some((w, avg));
+    }
+    let (_, filled) = parent.expect("pyramid has a level");
+    for i in 0..values.len() {
+        if !mask[i] {
+            values[i] = filled[i];
+        }
+    }
+    // Relax: Gauss–Seidel sweeps of the Laplace equation over the void samples.
+    let voids: Vec<usize> = (0..values.len()).filter(|&i| !mask[i]).collect();
+    for _ in 0..8 {
+        for &i in &voids {
+            let (x, y) = (i % width, i / width);
+            let mut sum = 0.0;
+            let mut count = 0.0;
+            if x > 0 {
+                sum += values[i - 1];
+                count += 1.0;
+            }
+            if x + 1 < width {
+                sum += values[i + 1];
+                count += 1.0;
+            }
+            if y > 0 {
+                sum += values[i - width];
+                count += 1.0;
+            }
+            if y + 1 < height {
+                sum += values[i + width];
+                count += 1.0;
+            }
+            if count > 0.0 {
+                values[i] = sum / count;
+            }
+        }
+    }
+}
+
+/// Builds the output samples from reconstructed values (`f64`, before narrowing), putting
+/// `nodata` (or NaN for floats without one) where `mask` is false.
+pub fn to_samples(
+    sample_type: SampleType,
+    values: &[f64],
+    mask: Option<&[bool]>,
+    nodata: Option<f64>,
+) -> Samples {
+    match mask {
+        None => Samples::from_f64(sample_type, values),
+        Some(mask) => {
+            let fill = nodata.unwrap_or(f64::NAN);
+            let with_voids: Vec<f64> = values
+                .iter()
+                .zip(mask)
+                .map(|(&v, &m)| if m { v } else { fill })
+                .collect();
+            Samples::from_f64(sample_type, &with_voids)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integer_max_error_bound_holds() {
+        let samples: Vec<i16> = (-300..300).map(|v| (v * 7 % 251) as i16).collect();
+        let raster = Raster::new(600, 1, Samples::I16(samples.clone())).unwrap();
+        let mask = vec![true; 600];
+        for e in [0.0, 0.5, 1.0, 2.0, 3.7, 10.0] {
+            let plane = integer_plane(&raster, &mask, e).unwrap();
+            for (q, &v) in plane.values.iter().zip(&samples) {
+                let back = plane.mapping.value(*q as f64);
+                assert!((back - v as f64).abs() <= e.floor(), "e={e}: {v} -> {back}");
+            }
+        }
+    }
+
+    #[test]
+    fn grid_detection_finds_tenths_and_rejects_noise() {
+        let tenths: Vec<f32> = (0..1000)
+            .map(|i| (-10000.0 + (i * 37 + 100_137) as f64 * 0.1) as f32)
+            .collect();
+        let mask = vec![true; tenths.len()];
+        assert_eq!(detect_float_grid(&tenths, &mask), Some(0.1));
+        let noisy: Vec<f32> = (0..1000)
+            .map(|i| (i as f32 * 0.737_123_4).sin() * 1234.567)
+            .collect();
+        assert_eq!(detect_float_grid(&noisy, &mask), None);
+    }
+
+    #[test]
+    fn float_residuals_are_exact() {
+        let values: Vec<f32> = (0..2000)
+            .map(|i| (i as f32 * 0.311).cos() * 812.25 + 1000.0)
+            .collect();
+        let mask = vec![true; values.len()];
+        let step = default_float_step(180.0, 1820.0);
+        let plane = float_plane(&values, &mask, step, true, 0.0).unwrap();
+        for ((&q, &r), &v) in plane.values.iter().zip(&plane.residuals).zip(&values) {
+            let base = plane.mapping.value(q as f64) as f32;
+            assert_eq!(f32::from_bits(base.to_bits().wrapping_add(r as u32)), v);
+        }
+    }
+
+    #[test]
+    fn voids_are_filled_smoothly() {
+        let (w, h) = (32, 16);
+        let mut values: Vec<f64> = (0..w * h).map(|i| (i % w) as f64 * 2.0).collect();
+        let mask: Vec<bool> = (0..w * h)
+            .map(|i| !((8..20).contains(&(i % w)) && (4..12).contains(&(i / w))))
+            .collect();
+        let original = values.clone();
+        for (v, &m) in values.iter_mut().zip(&mask) {
+            if !m {
+                *v = -32768.0;
+            }
+        }
+        fill_voids(&mut values, w, h, &mask);
+        for i in 0..w * h {
+            assert!(
+                (values[i] - original[i]).abs() < 12.0,
+                "sample {i}: {} vs {}",
+                values[i],
+                original[i]
+            );
+        }
+    }
+}

@@ -1,0 +1,249 @@
+//! End-to-end codec properties: lossless exactness, the max-error guarantee, embedded
+//! prefixes, and hostile input.
+
+use proptest::prelude::*;
+use wavemesh_codec::{
+    decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, SampleType, Samples, Wavelet,
+};
+
+/// A smooth-ish random terrain of the given type: ridges plus noise, in the type's range.
+fn terrain(
+    width: usize,
+    height: usize,
+    sample_type: SampleType,
+    seed: u64,
+    amplitude: f64,
+) -> Raster {
+    let mut state = seed | 1;
+    let mut noise = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let base = match sample_type {
+        SampleType::U8 => 128.0,
+        SampleType::U16 => 30000.0,
+        _ => 0.0,
+    };
+    let values: Vec<f64> = (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f64, (i / width) as f64);
+            base + amplitude * ((x * 0.21).sin() * (y * 0.13).cos() + 0.3 * noise())
+        })
+        .collect();
+    Raster::new(width, height, Samples::from_f64(sample_type, &values)).unwrap()
+}
+
+fn amplitude(sample_type: SampleType) -> f64 {
+    match sample_type {
+        SampleType::U8 => 100.0,
+        SampleType::U16 => 20000.0,
+        SampleType::I16 => 3000.0,
+        SampleType::I32 => 100_000.0,
+        SampleType::F32 => 1234.5,
+    }
+}
+
+fn roundtrip(raster: &Raster, options: &EncodeOptions) -> Raster {
+    let encoded = encode(raster, options).unwrap();
+    let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+    assert!(decoded.complete || options.budget_bytes.is_some());
+    decoded.raster
+}
+
+fn max_abs_error(a: &Raster, b: &Raster) -> f64 {
+    (0..a.len())
+        .filter(|&i| a.is_valid(i))
+        .map(|i| (a.samples.get_f64(i) - b.samples.get_f64(i)).abs())
+        .fold(0.0, f64::max)
+}
+
+fn squared_error(a: &Raster, b: &Raster) -> f64 {
+    (0..a.len())
+        .filter(|&i| a.is_valid(i))
+        .map(|i| (a.samples.get_f64(i) - b.samples.get_f64(i)).powi(2))
+        .sum()
+}
+
+const TYPES: [SampleType; 5] = [
+    SampleType::U8,
+    SampleType::U16,
+    SampleType::I16,
+    SampleType::I32,
+    SampleType::F32,
+];
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn lossless_is_bit_exact(w in 1usize..40, h in 1usize..40, t in 0usize..5, seed in any::<u64>()) {
+        let raster = terrain(w, h, TYPES[t], seed, amplitude(TYPES[t]));
+        let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::Lossless, None));
+        prop_assert_eq!(decoded, raster);
+    }
+
+    #[test]
+    fn max_error_holds_on_every_sample(w in 1usize..40, h in 1usize..40, t in 0usize..5, seed in any::<u64>(), e in prop::sample::select(vec![0.5, 1.0, 2.0, 3.5, 10.0])) {
+        let raster = terrain(w, h, TYPES[t], seed, amplitude(TYPES[t]));
+        let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::MaxError(e), None));
+        let err = max_abs_error(&raster, &decoded);
+        prop_assert!(err <= e, "max error {} > {}", err, e);
+    }
+
+    #[test]
+    fn nodata_survives(w in 2usize..30, h in 2usize..30, seed in any::<u64>()) {
+        let mut raster = terrain(w, h, SampleType::I16, seed, 2000.0);
+        if let Samples::I16(v) = &mut raster.samples {
+            for (i, s) in v.iter_mut().enumerate() {
+                if (i as u64).wrapping_mul(seed | 1) % 7 == 0 {
+                    *s = -32768;
+                }
+            }
+        }
+        raster.nodata = Some(-32768.0);
+        let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::Lossless, None));
+        prop_assert_eq!(&decoded, &raster);
+        let bounded = roundtrip(&raster, &EncodeOptions::new(Quality::MaxError(3.0), None));
+        prop_assert_eq!(bounded.valid_mask(), raster.valid_mask());
+        prop_assert!(max_abs_error(&raster, &bounded) <= 3.0);
+    }
+}
+
+#[test]
+fn float_lossless_on_and_off_grid_with_nan_voids() {
+    // On a 0.1 grid (as Terrain-RGB), off any grid, and with NaN voids.
+    let on_grid: Vec<f32> = (0..50 * 40)
+        .map(|i| ((i * 37 % 9000) as f64 * 0.1 + 13.7) as f32)
+        .collect();
+    let off_grid: Vec<f32> = (0..50 * 40)
+        .map(|i| (i as f32 * 0.123_456_7).sin() * 812.345 + 1000.0)
+        .collect();
+    for values in [on_grid, off_grid] {
+        let mut with_voids = values.clone();
+        for v in with_voids.iter_mut().step_by(11) {
+            *v = f32::NAN;
+        }
+        for samples in [values, with_voids] {
+            let raster = Raster::new(50, 40, Samples::F32(samples)).unwrap();
+            let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::Lossless, None));
+            let (Samples::F32(a), Samples::F32(b)) = (&raster.samples, &decoded.samples) else {
+                panic!("type changed")
+            };
+            for (x, y) in a.iter().zip(b) {
+                assert!(
+                    x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()),
+                    "{x} vs {y}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn float_precision_bound() {
+    let values: Vec<f32> = (0..64 * 64)
+        .map(|i| (i as f32 * 0.01).cos() * 500.0 + 700.0)
+        .collect();
+    let raster = Raster::new(64, 64, Samples::F32(values)).unwrap();
+    let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::Precision(0.05), None));
+    // Half the step, plus the f32 rounding of values near 1200.
+    assert!(max_abs_error(&raster, &decoded) <= 0.025 + 1200.0 * f32::EPSILON as f64);
+}
+
+#[test]
+fn every_prefix_decodes_and_error_falls() {
+    let raster = terrain(37, 29, SampleType::I16, 99, 3000.0);
+    for options in [
+        EncodeOptions::new(Quality::Lossless, None),
+        EncodeOptions {
+            wavelet: Wavelet::Cdf97,
+            ..EncodeOptions::new(Quality::Lossless, Some(4000))
+        },
+    ] {
+        let encoded = encode(&raster, &options).unwrap();
+        let mut best = f64::INFINITY;
+        let mut errors = Vec::new();
+        for cut in encoded.header_len..=encoded.bytes.len() {
+            let decoded = decode(&encoded.bytes[..cut], &DecodeOptions::default()).unwrap();
+            let err = squared_error(&raster, &decoded.raster);
+            errors.push(err);
+            best = best.min(err);
+        }
+        // Error at pass boundaries never increases (inside a pass a single refinement
+        // may move one coefficient's reconstruction away from its value).
+        let mut previous = f64::INFINITY;
+        for pass in &encoded.header.passes {
+            let cut = encoded.header_len + pass.end_byte as usize;
+            let at = errors[cut - encoded.header_len];
+            assert!(
+                at <= previous * 1.0001 + 1e-9,
+                "{:?}: error rose to {at} from {previous} at plane {}",
+                options.wavelet,
+                pass.plane
+            );
+            previous = at;
+        }
+        assert!(best < errors[0]);
+    }
+}
+
+#[test]
+fn rate_cut_is_exact() {
+    let raster = terrain(64, 64, SampleType::U16, 5, 20000.0);
+    for budget in [200u64, 512, 1000, 3000] {
+        let options = EncodeOptions::new(Quality::Lossless, Some(budget));
+        let encoded = encode(&raster, &options).unwrap();
+        assert_eq!(encoded.bytes.len() as u64, budget);
+        decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+    }
+}
+
+#[test]
+fn garbage_and_damage_give_errors_or_images_never_panics() {
+    let raster = terrain(23, 17, SampleType::I16, 3, 500.0);
+    let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+    let mut tried = 0;
+    // Bit flips at every position.
+    for i in 0..encoded.bytes.len() {
+        for bit in [0, 3, 7] {
+            let mut damaged = encoded.bytes.clone();
+            damaged[i] ^= 1 << bit;
+            let _ = decode(&damaged, &DecodeOptions::default());
+            tried += 1;
+        }
+    }
+    // Random bytes, with and without a valid magic.
+    let mut state = 0x1234_5678_9abc_def1u64;
+    for n in 0..2000usize {
+        let len = n % 300;
+        let mut bytes: Vec<u8> = (0..len)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state as u8
+            })
+            .collect();
+        if n % 2 == 0 && len >= 8 {
+            bytes[..8].copy_from_slice(&wavemesh_codec::container::MAGIC);
+        }
+        // A forged header would need a matching CRC-32: random bytes never decode.
+        assert!(decode(&bytes, &DecodeOptions::default()).is_err());
+        tried += 1;
+    }
+    assert!(tried > 2000);
+}
+
+#[test]
+fn absurd_dimensions_are_refused_before_allocating() {
+    let raster = terrain(8, 8, SampleType::U8, 1, 50.0);
+    let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+    let mut header = encoded.header.clone();
+    header.width = 1_000_000;
+    header.height = 1_000_000;
+    let bytes = header.to_bytes();
+    let err = decode(&bytes, &DecodeOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("limit"), "{err}");
+}
