@@ -2,4 +2,7 @@
 //!
 //! DEM input/output, metrics and the command line around [`wavemesh_codec`].
 
+pub mod atomic;
 pub mod dem;
+pub mod memory;
+pub mod metrics;

@@ -54,13 +54,13 @@ impl BitModel {
     /// Updates the model after coding `bit`.
     #[inline]
     pub fn update(&mut self, bit: bool) {
-        if bit {
-            self.fast -= self.fast >> FAST_RATE;
-            self.slow -= self.slow >> SLOW_RATE;
-        } else {
-            self.fast += ((PROB_ONE - 1) as u16 - self.fast) >> FAST_RATE;
-            self.slow += ((PROB_ONE - 1) as u16 - self.slow) >> SLOW_RATE;
-        }
+        // Move both estimates toward 0 (after a 1) or 65535 (after a 0) without a branch:
+        // `p += (target − p) >> rate` with an arithmetic shift.
+        let target = (!bit as i32) * (PROB_ONE as i32 - 1);
+        let fast = self.fast as i32;
+        let slow = self.slow as i32;
+        self.fast = (fast + ((target - fast) >> FAST_RATE)) as u16;
+        self.slow = (slow + ((target - slow) >> SLOW_RATE)) as u16;
     }
 }
 
@@ -260,14 +260,11 @@ impl<'a> ArithmeticDecoder<'a> {
 
     #[inline]
     fn decode_with_bound(&mut self, bound: u32) -> bool {
-        let bit = if self.code < bound {
-            self.range = bound;
-            false
-        } else {
-            self.code -= bound;
-            self.range -= bound;
-            true
-        };
+        // Branch-free: the decoded bit is unpredictable by nature.
+        let bit = self.code >= bound;
+        let mask = (bit as u32).wrapping_neg();
+        self.code -= bound & mask;
+        self.range = (bound & !mask) | (self.range.wrapping_sub(bound) & mask);
         while self.range < TOP {
             self.range <<= 8;
             self.code = (self.code << 8) | self.next_byte() as u32;

@@ -15,7 +15,9 @@ pub enum CodecError {
     #[error("truncated .ezw header: {0}")]
     TruncatedHeader(&'static str),
     /// The header checksum does not match its contents.
-    #[error("corrupt .ezw header: checksum mismatch (stored {stored:08x}, computed {computed:08x})")]
+    #[error(
+        "corrupt .ezw header: checksum mismatch (stored {stored:08x}, computed {computed:08x})"
+    )]
     HeaderChecksum {
         /// Checksum stored in the file.
         stored: u32,

@@ -54,6 +54,8 @@ struct Band {
     class: usize,
     /// Orientation class for sign contexts: 0 = LL, 1 = HL, 2 = LH, 3 = HH.
     orientation: usize,
+    /// Whether some band holds this band's children.
+    has_children: bool,
 }
 
 /// The subbands of a transformed image, with the per-band shifts and parent links.
@@ -102,7 +104,13 @@ impl CoefficientLayout {
                 halve,
                 class,
                 orientation,
+                has_children: false,
             });
+        }
+        for b in 0..bands.len() {
+            if let Some(pb) = bands[b].parent {
+                bands[pb].has_children = true;
+            }
         }
         CoefficientLayout {
             width,
@@ -132,11 +140,6 @@ impl CoefficientLayout {
         };
         (px < pb.sub.width && py < pb.sub.height)
             .then(|| (pb.sub.y0 + py) * self.width + pb.sub.x0 + px)
-    }
-
-    /// Whether coefficients of band `b` have children.
-    fn has_children(&self, b: usize) -> bool {
-        self.bands.iter().any(|c| c.parent == Some(b))
     }
 }
 
@@ -187,38 +190,49 @@ trait Side {
     fn is_negative(&self, i: usize) -> bool;
 }
 
-/// Counts of significant neighbours: (left+right+up+down capped at 2, any diagonal).
-#[inline]
-fn neighbourhood(flags: &[u8], i: usize, x: usize, y: usize, w: usize, h: usize) -> (usize, usize) {
-    let sig = |j: usize| (flags[j] & SIG) as usize;
-    let (left, right, up, down) = (x > 0, x + 1 < w, y > 0, y + 1 < h);
-    let mut hv = 0;
-    let mut diag = 0;
-    if left {
-        hv += sig(i - 1);
-    }
-    if right {
-        hv += sig(i + 1);
-    }
-    if up {
-        hv += sig(i - w);
-        if left {
-            diag |= sig(i - w - 1);
-        }
-        if right {
-            diag |= sig(i - w + 1);
+/// Per-coefficient flags stored with a one-sample border of zeros on every side, so
+/// neighbour lookups need no bounds checks: coefficient (x, y) sits at
+/// `(y + 1) · stride + x + 1` with `stride = width + 2`.
+#[derive(Debug, Clone)]
+struct FlagGrid {
+    flags: Vec<u8>,
+    stride: usize,
+}
+
+impl FlagGrid {
+    fn new(width: usize, height: usize) -> FlagGrid {
+        FlagGrid {
+            flags: vec![0; (width + 2) * (height + 2)],
+            stride: width + 2,
         }
     }
-    if down {
-        hv += sig(i + w);
-        if left {
-            diag |= sig(i + w - 1);
-        }
-        if right {
-            diag |= sig(i + w + 1);
-        }
+
+    /// Index of coefficient (x, y).
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> usize {
+        (y + 1) * self.stride + x + 1
     }
-    (hv.min(2), diag)
+
+    /// Significant neighbours of flag index `f`: (left+right+up+down capped at 2, any
+    /// diagonal).
+    #[inline]
+    fn neighbourhood(&self, f: usize) -> (usize, usize) {
+        let s = self.stride;
+        let g = &self.flags;
+        let sig = |j: usize| (g[j] & SIG) as usize;
+        let hv = sig(f - 1) + sig(f + 1) + sig(f - s) + sig(f + s);
+        let diag = sig(f - s - 1) | sig(f - s + 1) | sig(f + s - 1) | sig(f + s + 1);
+        (hv.min(2), diag)
+    }
+}
+
+/// Where a band's parents are, resolved once per pass.
+struct ParentBand {
+    x0: usize,
+    y0: usize,
+    width: usize,
+    height: usize,
+    halve: bool,
 }
 
 /// Outcome of one scan.
@@ -230,84 +244,99 @@ enum ScanEnd {
 /// Runs pass `n` (dominant then subordinate scan) for one side.
 fn scan_pass<S: Side>(
     layout: &CoefficientLayout,
-    flags: &mut [u8],
+    grid: &mut FlagGrid,
     contexts: &mut Contexts,
     side: &mut S,
     n: u32,
 ) -> ScanEnd {
     let w = layout.width;
-    let h = layout.height;
+    let stride = grid.stride;
     // Dominant scan.
     for (b, band) in layout.bands.iter().enumerate() {
         let sub = band.sub;
         if n < band.shift || sub.width == 0 || sub.height == 0 {
             // Every bit of this band is known already: it covers none of its children.
             for y in 0..sub.height {
-                let row = (sub.y0 + y) * w + sub.x0;
-                for f in &mut flags[row..row + sub.width] {
+                let row = grid.at(sub.x0, sub.y0 + y);
+                for f in &mut grid.flags[row..row + sub.width] {
                     *f &= !ZT;
                 }
             }
             continue;
         }
         let p = n - band.shift;
-        let parent_active = band.parent.is_some_and(|pb| n >= layout.bands[pb].shift);
-        let has_children = layout.has_children(b);
+        let parent = band
+            .parent
+            .filter(|&pb| n >= layout.bands[pb].shift)
+            .map(|pb| {
+                let ps = layout.bands[pb].sub;
+                ParentBand {
+                    x0: ps.x0,
+                    y0: ps.y0,
+                    width: ps.width,
+                    height: ps.height,
+                    halve: band.halve,
+                }
+            });
+        let has_children = band.has_children;
         let class = band.class;
+        let orientation = band.orientation;
         for y in 0..sub.height {
             let gy = sub.y0 + y;
+            let row_f = grid.at(sub.x0, gy);
+            let row_i = gy * w + sub.x0;
+            // Flag index of the parent row (start of the parent band's row), if any.
+            let parent_row = parent.as_ref().and_then(|pb| {
+                let py = if pb.halve { y / 2 } else { y };
+                (py < pb.height).then(|| (grid.at(pb.x0, pb.y0 + py), pb.width, pb.halve))
+            });
             for x in 0..sub.width {
-                let gx = sub.x0 + x;
-                let i = gy * w + gx;
-                let f = flags[i];
-                if f & SIG != 0 {
-                    flags[i] = f & !ZT;
-                    continue;
-                }
-                let parent = if parent_active {
-                    layout.parent_index(b, x, y)
-                } else {
-                    None
+                let fi = row_f + x;
+                let i = row_i + x;
+                let f = grid.flags[fi];
+                let parent_flags = match parent_row {
+                    Some((start, pw, halve)) => {
+                        let px = if halve { x >> 1 } else { x };
+                        if px < pw {
+                            grid.flags[start + px]
+                        } else {
+                            0
+                        }
+                    }
+                    None => 0,
                 };
-                let parent_flags = parent.map_or(0, |pi| flags[pi]);
-                if parent_flags & ZT != 0 {
-                    flags[i] = f | ZT;
+                if f & SIG != 0 || parent_flags & ZT != 0 {
+                    // Skipped: a significant coefficient is a zero placeholder that passes
+                    // its parent's zerotree on to its own descendants.
+                    grid.flags[fi] = (f & !ZT) | (parent_flags & ZT);
                     continue;
                 }
                 let parent_sig = (parent_flags & SIG) as usize;
-                let (hv, diag) = neighbourhood(flags, i, gx, gy, w, h);
+                let (hv, diag) = grid.neighbourhood(fi);
                 let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
                 let significant = side.significance(i, p, &mut contexts.significance[ctx]);
                 if side.stopped() {
                     return ScanEnd::Stopped;
                 }
                 if significant {
-                    let left = if gx > 0 {
-                        sign_state(flags, side, i - 1)
-                    } else {
-                        0
-                    };
-                    let up = if gy > 0 {
-                        sign_state(flags, side, i - w)
-                    } else {
-                        0
-                    };
-                    let sctx = (band.orientation * 3 + left) * 3 + up;
+                    let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
+                    let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
+                    let sctx = (orientation * 3 + left) * 3 + up;
                     let negative = side.sign(i, &mut contexts.sign[sctx]);
                     if side.stopped() {
                         return ScanEnd::Stopped;
                     }
                     side.commit_significant(i, b, p, negative);
-                    flags[i] = SIG | NEW | ((p as u8) << PLANE_SHIFT);
+                    grid.flags[fi] = SIG | NEW | ((p as u8) << PLANE_SHIFT);
                 } else if has_children {
                     let zctx = (class * 3 + hv) * 2 + parent_sig;
                     let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
                     if side.stopped() {
                         return ScanEnd::Stopped;
                     }
-                    flags[i] = if root { f | ZT } else { f & !ZT };
+                    grid.flags[fi] = if root { f | ZT } else { f & !ZT };
                 } else {
-                    flags[i] = f & !ZT;
+                    grid.flags[fi] = f & !ZT;
                 }
             }
         }
@@ -321,37 +350,40 @@ fn scan_pass<S: Side>(
         let sub = band.sub;
         for y in 0..sub.height {
             let gy = sub.y0 + y;
+            let row_f = grid.at(sub.x0, gy);
+            let row_i = gy * w + sub.x0;
             for x in 0..sub.width {
-                let gx = sub.x0 + x;
-                let i = gy * w + gx;
-                let f = flags[i];
+                let fi = row_f + x;
+                let f = grid.flags[fi];
                 if f & SIG == 0 {
                     continue;
                 }
                 if f & NEW != 0 {
-                    flags[i] = f & !NEW;
+                    grid.flags[fi] = f & !NEW;
                     continue;
                 }
                 let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize;
-                let (hv, diag) = neighbourhood(flags, i, gx, gy, w, h);
+                let (hv, diag) = grid.neighbourhood(fi);
                 let busy = (hv + diag > 1) as usize;
                 let rctx = (first * 2 + busy) * 4 + band.class;
+                let i = row_i + x;
                 let bit = side.refinement(i, p, &mut contexts.refinement[rctx]);
                 if side.stopped() {
                     return ScanEnd::Stopped;
                 }
                 side.commit_refinement(i, b, p, bit);
-                flags[i] = (f & !(0x1F << PLANE_SHIFT)) | ((p as u8) << PLANE_SHIFT);
+                grid.flags[fi] = (f & !(0x1F << PLANE_SHIFT)) | ((p as u8) << PLANE_SHIFT);
             }
         }
     }
     ScanEnd::Finished
 }
 
-/// Sign state of a neighbour for sign contexts: 0 = not significant, 1 = +, 2 = −.
+/// Sign state of a neighbour for sign contexts: 0 = not significant (or outside the
+/// array: border flags are zero, so `j` is then never used), 1 = +, 2 = −.
 #[inline]
-fn sign_state<S: Side>(flags: &[u8], side: &S, j: usize) -> usize {
-    if flags[j] & SIG == 0 {
+fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
+    if flags & SIG == 0 {
         0
     } else if side.is_negative(j) {
         2
@@ -579,13 +611,13 @@ pub fn encode(
         over_budget: false,
         midpoint,
     };
-    let mut flags = vec![0u8; coefficients.len()];
+    let mut grid = FlagGrid::new(layout.width, layout.height);
     let mut contexts = Contexts::default();
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
         for n in (0..=top).rev() {
-            match scan_pass(layout, &mut flags, &mut contexts, &mut side, n) {
+            match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
                 ScanEnd::Finished => passes.push(PassRecord {
                     plane: n,
                     end_byte: side.sink.bytes_so_far() as u64,
@@ -659,7 +691,8 @@ impl Side for DecoderSide<'_> {
 #[derive(Debug, Clone)]
 pub struct Decoder {
     values: Vec<i32>,
-    flags: Vec<u8>,
+    grid: FlagGrid,
+    width: usize,
     /// Passes decoded completely.
     pub passes_completed: u32,
     /// Whether the decode ran through plane 0 (every bit of every coefficient known).
@@ -682,7 +715,7 @@ impl Decoder {
             source: ArithmeticDecoder::new(payload, payload_complete),
             values: vec![0; n_coefficients],
         };
-        let mut flags = vec![0u8; n_coefficients];
+        let mut grid = FlagGrid::new(layout.width, layout.height);
         let mut contexts = Contexts::default();
         let mut passes_completed = 0;
         let mut complete = true;
@@ -692,7 +725,7 @@ impl Decoder {
                     complete = false;
                     break;
                 }
-                match scan_pass(layout, &mut flags, &mut contexts, &mut side, n) {
+                match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
                     ScanEnd::Finished => passes_completed += 1,
                     ScanEnd::Stopped => {
                         complete = false;
@@ -703,7 +736,8 @@ impl Decoder {
         }
         Decoder {
             values: side.values,
-            flags,
+            grid,
+            width: layout.width,
             passes_completed,
             complete,
         }
@@ -711,23 +745,31 @@ impl Decoder {
 
     /// Reconstructs every coefficient mid-interval, returned as `f64` via `store`.
     pub fn dequantise(&self, midpoint: Midpoint, mut store: impl FnMut(usize, f64)) {
-        for (i, (&v, &f)) in self.values.iter().zip(&self.flags).enumerate() {
-            if f & SIG == 0 {
-                store(i, 0.0);
-                continue;
+        for (y, row) in self.values.chunks(self.width).enumerate() {
+            let flags = &self.grid.flags[self.grid.at(0, y)..][..self.width];
+            for (x, (&v, &f)) in row.iter().zip(flags).enumerate() {
+                let i = y * self.width + x;
+                if f & SIG == 0 {
+                    store(i, 0.0);
+                    continue;
+                }
+                let p = (f >> PLANE_SHIFT) as u32;
+                let magnitude = midpoint.value(v.unsigned_abs(), p);
+                store(i, if v < 0 { -magnitude } else { magnitude });
             }
-            let p = (f >> PLANE_SHIFT) as u32;
-            let magnitude = midpoint.value(v.unsigned_abs(), p);
-            store(i, if v < 0 { -magnitude } else { magnitude });
         }
     }
 
     /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
     /// are known.
     pub fn integer_coefficients(self) -> Vec<i32> {
-        let Decoder { values, flags, .. } = self;
+        let Decoder {
+            values, grid, width, ..
+        } = self;
         let mut out = values;
-        for (v, &f) in out.iter_mut().zip(&flags) {
+        for (i, v) in out.iter_mut().enumerate() {
+            let (x, y) = (i % width, i / width);
+            let f = grid.flags[grid.at(x, y)];
             if f & SIG == 0 {
                 *v = 0;
                 continue;

@@ -147,7 +147,13 @@ impl Samples {
         fn int<T>(values: &[f64], lo: f64, hi: f64, cast: fn(f64) -> T) -> Vec<T> {
             values
                 .iter()
-                .map(|&v| cast(if v.is_nan() { 0.0 } else { v.round().clamp(lo, hi) }))
+                .map(|&v| {
+                    cast(if v.is_nan() {
+                        0.0
+                    } else {
+                        v.round().clamp(lo, hi)
+                    })
+                })
                 .collect()
         }
         let (lo, hi) = sample_type.value_range();

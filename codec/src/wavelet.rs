@@ -28,7 +28,7 @@
 //! # Implementation notes
 //!
 //! Rows are de-interleaved into a scratch buffer, lifted there and copied back. Columns
-//! are processed in strips of [`STRIP`] adjacent columns: the strip is gathered (already
+//! are processed in strips of 32 adjacent columns: the strip is gathered (already
 //! de-interleaved) into a scratch buffer where each lifting step is one flat, vectorisable
 //! loop over all lanes, then scattered back. Scratch memory is allocated once per call.
 
@@ -99,7 +99,7 @@ pub struct Subband {
 }
 
 /// Number of adjacent columns lifted together in the vertical pass.
-const STRIP: usize = 16;
+const STRIP: usize = 32;
 
 /// Largest side the LL region may keep with [`default_levels`].
 const DEFAULT_LL_SIDE: usize = 8;
@@ -463,7 +463,7 @@ impl Kernel<f64> for Linear {
 fn scale(v: &mut [f64], g: f64) {
     if g != 1.0 {
         for x in v {
-            *x = *x * g;
+            *x *= g;
         }
     }
 }

@@ -1,0 +1,493 @@
+//! `encode`, `decode`, `info` and `compare`.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use wavemesh::metrics::{self, Distortion};
+use wavemesh_codec::container::PAYLOAD_CUT;
+use wavemesh_codec::{decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header, Quality, Raster};
+
+use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+
+/// Version of every JSON object the CLI prints.
+pub const SCHEMA_VERSION: u32 = 1;
+
+#[derive(Debug, clap::Args)]
+pub struct EncodeArgs {
+    /// Input DEM.
+    input: PathBuf,
+    /// Output .ezw file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53.
+    #[arg(long, conflicts_with_all = ["max_error", "precision"])]
+    bpp: Option<f64>,
+    /// Keep every valid sample within E data units of the original (5/3).
+    #[arg(long, value_name = "E", conflicts_with = "precision")]
+    max_error: Option<f64>,
+    /// Float rasters: quantise to STEP (error ≤ STEP/2) instead of coding exactly.
+    #[arg(long, value_name = "STEP")]
+    precision: Option<f64>,
+    /// Transform: 97 (CDF 9/7, lossy) or 53 (integer 5/3). Default: 97 with --bpp, else 53.
+    #[arg(long)]
+    wavelet: Option<WaveletArg>,
+    /// Decomposition levels (default: until the coarsest band is at most 8 samples wide).
+    #[arg(long)]
+    levels: Option<u32>,
+    /// Report PSNR/RMSE/max error of the encoded stream against this DEM.
+    #[arg(long, value_name = "ORIGINAL")]
+    reference: Option<PathBuf>,
+    /// Print one JSON object on stdout instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct DecodeArgs {
+    /// Input .ezw file.
+    input: PathBuf,
+    /// Output DEM (.tif, .png or .asc).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Decode only the first bpp·width·height/8 bytes of the file.
+    #[arg(long, conflicts_with = "bytes")]
+    bpp: Option<f64>,
+    /// Decode only the first N bytes of the file.
+    #[arg(long, value_name = "N")]
+    bytes: Option<u64>,
+    /// Report PSNR/RMSE/max error of the decoded DEM against this one.
+    #[arg(long, value_name = "ORIGINAL")]
+    reference: Option<PathBuf>,
+    /// Refuse streams that need more decoder memory than this many bytes.
+    #[arg(long, default_value_t = 16 << 30)]
+    max_memory: u64,
+    /// Print one JSON object on stdout instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct InfoArgs {
+    /// The .ezw file.
+    input: PathBuf,
+    /// Print one JSON object on stdout instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CompareArgs {
+    /// The original DEM.
+    original: PathBuf,
+    /// The reconstruction.
+    other: PathBuf,
+    /// Print one JSON object on stdout instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Serialize)]
+struct EncodeReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    output: &'a Path,
+    width: u32,
+    height: u32,
+    sample_type: &'static str,
+    wavelet: &'static str,
+    levels: u8,
+    mode: &'static str,
+    max_error_bound: Option<f64>,
+    bytes: u64,
+    header_bytes: u64,
+    mask_bytes: u64,
+    bpp: f64,
+    passes: usize,
+    complete: bool,
+    encode_seconds: f64,
+    encode_msamples_per_second: f64,
+    encode_peak_heap_bytes: u64,
+    distortion: Option<Distortion>,
+}
+
+pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
+    refuse_overwriting_input(&args.input, &args.output)?;
+    let raster = args.input_args.read(&args.input)?;
+    let samples = (raster.width * raster.height) as f64;
+    let budget = match args.bpp {
+        Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
+        Some(bpp) => return Err(CliError::Usage(format!("--bpp must be positive, got {bpp}"))),
+        None => None,
+    };
+    let quality = match (args.max_error, args.precision) {
+        (Some(e), _) => Quality::MaxError(e),
+        (_, Some(step)) => Quality::Precision(step),
+        _ => Quality::Lossless,
+    };
+    let mut options = EncodeOptions::new(quality, budget);
+    if let Some(w) = args.wavelet {
+        options.wavelet = w.into();
+    }
+    if options.wavelet == wavemesh_codec::Wavelet::Cdf97 && budget.is_none() {
+        return Err(CliError::Usage("the 9/7 wavelet is lossy: give a rate with --bpp".into()));
+    }
+    options.levels = args.levels;
+    let (encoded, seconds, peak) = with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
+    let encoded = encoded.map_err(CliError::Encode)?;
+    write_output(&args.output, &encoded.bytes)?;
+    let distortion = match &args.reference {
+        None => None,
+        Some(path) => {
+            let reference = args.input_args.read(path)?;
+            let decoded = decode_stream(&encoded.bytes, &DecodeOptions::default())
+                .map_err(|e| CliError::Stream(args.output.clone(), e))?;
+            Some(compare_rasters(&reference, &decoded.raster, path)?)
+        }
+    };
+    let header = &encoded.header;
+    let report = EncodeReport {
+        schema_version: SCHEMA_VERSION,
+        command: "encode",
+        input: &args.input,
+        output: &args.output,
+        width: header.width,
+        height: header.height,
+        sample_type: header.sample_type.name(),
+        wavelet: header.wavelet.name(),
+        levels: header.levels,
+        mode: header.mode.name(),
+        max_error_bound: header.max_error.is_finite().then_some(header.max_error),
+        bytes: encoded.bytes.len() as u64,
+        header_bytes: encoded.header_len as u64,
+        mask_bytes: header.mask_len as u64,
+        bpp: metrics::bits_per_sample(encoded.bytes.len() as u64, raster.width, raster.height),
+        passes: header.passes.iter().filter(|p| p.end_byte != PAYLOAD_CUT).count(),
+        complete: header.payload_len != PAYLOAD_CUT,
+        encode_seconds: seconds,
+        encode_msamples_per_second: samples / seconds / 1e6,
+        encode_peak_heap_bytes: peak as u64,
+        distortion,
+    };
+    if args.json {
+        print_json(&report);
+    } else {
+        println!(
+            "{} -> {}: {}x{} {}, {} {} ({}), {} bytes = {:.4} bpp, {:.3} s ({:.1} MS/s)",
+            args.input.display(),
+            args.output.display(),
+            report.width,
+            report.height,
+            report.sample_type,
+            report.wavelet,
+            report.mode,
+            report.max_error_bound.map_or("no error bound".to_string(), |e| format!("max error {e}")),
+            report.bytes,
+            report.bpp,
+            seconds,
+            report.encode_msamples_per_second
+        );
+        if let Some(d) = &report.distortion {
+            print_distortion(d);
+        }
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct DecodeReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    output: &'a Path,
+    width: u32,
+    height: u32,
+    bytes_read: u64,
+    bytes_used: u64,
+    bpp: f64,
+    passes_decoded: u32,
+    passes_total: usize,
+    complete: bool,
+    decode_seconds: f64,
+    decode_msamples_per_second: f64,
+    decode_peak_heap_bytes: u64,
+    raster_bytes: u64,
+    peak_heap_per_raster_byte: f64,
+    distortion: Option<Distortion>,
+}
+
+pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
+    refuse_overwriting_input(&args.input, &args.output)?;
+    let data = std::fs::read(&args.input).map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let samples = header.sample_count();
+    let max_bytes = match (args.bpp, args.bytes) {
+        (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples as f64 / 8.0).floor() as u64),
+        (Some(bpp), _) => return Err(CliError::Usage(format!("--bpp must be positive, got {bpp}"))),
+        (None, bytes) => bytes,
+    };
+    let options = DecodeOptions {
+        max_bytes,
+        max_passes: None,
+        limits: args.input_args.limits(args.max_memory),
+    };
+    let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
+    let (decoded, seconds, peak) = with_progress("decoding", || timed(|| decode_stream(&data, &options)));
+    let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(|e| CliError::Output(args.output.clone(), e.to_string()))?;
+    let distortion = match &args.reference {
+        None => None,
+        Some(path) => {
+            let reference = args.input_args.read(path)?;
+            Some(compare_rasters(&reference, &decoded.raster, path)?)
+        }
+    };
+    let raster_bytes = samples * header.sample_type.bytes() as u64;
+    let report = DecodeReport {
+        schema_version: SCHEMA_VERSION,
+        command: "decode",
+        input: &args.input,
+        output: &args.output,
+        width: header.width,
+        height: header.height,
+        bytes_read,
+        bytes_used: decoded.bytes_used,
+        bpp: metrics::bits_per_sample(bytes_read, header.width as usize, header.height as usize),
+        passes_decoded: decoded.passes_decoded,
+        passes_total: header.top_plane.map_or(0, |t| t as usize + 1),
+        complete: decoded.complete,
+        decode_seconds: seconds,
+        decode_msamples_per_second: samples as f64 / seconds / 1e6,
+        decode_peak_heap_bytes: peak as u64,
+        raster_bytes,
+        peak_heap_per_raster_byte: peak as f64 / raster_bytes as f64,
+        distortion,
+    };
+    if args.json {
+        print_json(&report);
+    } else {
+        println!(
+            "{} -> {}: {} of {} bytes ({:.4} bpp), {}/{} passes{}, {:.3} s ({:.1} MS/s)",
+            args.input.display(),
+            args.output.display(),
+            report.bytes_read,
+            data.len(),
+            report.bpp,
+            report.passes_decoded,
+            report.passes_total,
+            if report.complete { ", complete" } else { "" },
+            seconds,
+            report.decode_msamples_per_second
+        );
+        if let Some(d) = &report.distortion {
+            print_distortion(d);
+        }
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct PassReport {
+    plane: u32,
+    end_byte: u64,
+    bpp: f64,
+    estimated_rmse: f64,
+    estimated_psnr_db: f64,
+}
+
+#[derive(Serialize)]
+struct InfoReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    file_bytes: u64,
+    format_version: u16,
+    width: u32,
+    height: u32,
+    sample_type: &'static str,
+    wavelet: &'static str,
+    levels: u8,
+    mode: &'static str,
+    max_error_bound: Option<f64>,
+    value_offset: f64,
+    value_step: f64,
+    nodata: Option<String>,
+    valid_min: f64,
+    valid_max: f64,
+    header_bytes: u64,
+    mask_bytes: u32,
+    payload_bytes: Option<u64>,
+    residual_bytes: u32,
+    truncated: bool,
+    georeferenced: bool,
+    geotransform: Option<[f64; 6]>,
+    passes: Vec<PassReport>,
+}
+
+pub fn info(args: &InfoArgs) -> Result<(), CliError> {
+    let data = std::fs::read(&args.input).map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    let (header, header_len) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let (w, h) = (header.width as usize, header.height as usize);
+    let payload_start = (header_len + header.mask_len as usize) as u64;
+    let valid = if header.mask_len > 0 {
+        let mask_bytes = data.get(header_len..payload_start as usize).unwrap_or(&[]);
+        wavemesh_codec::mask::decode_mask(mask_bytes, w, w * h).iter().filter(|&&v| v).count()
+    } else {
+        w * h
+    } as f64;
+    let range = header.valid_range.1 - header.valid_range.0;
+    let passes = header
+        .passes
+        .iter()
+        .filter(|p| p.end_byte != PAYLOAD_CUT)
+        .map(|p| {
+            let rmse = (p.squared_error / valid.max(1.0)).sqrt();
+            PassReport {
+                plane: p.plane,
+                end_byte: payload_start + p.end_byte,
+                bpp: metrics::bits_per_sample(payload_start + p.end_byte, w, h),
+                estimated_rmse: rmse,
+                estimated_psnr_db: metrics::psnr(range, rmse),
+            }
+        })
+        .collect::<Vec<_>>();
+    let expected = payload_start + if header.payload_len == PAYLOAD_CUT { 0 } else { header.payload_len + header.residual_len as u64 };
+    let report = InfoReport {
+        schema_version: SCHEMA_VERSION,
+        command: "info",
+        input: &args.input,
+        file_bytes: data.len() as u64,
+        format_version: wavemesh_codec::container::VERSION,
+        width: header.width,
+        height: header.height,
+        sample_type: header.sample_type.name(),
+        wavelet: header.wavelet.name(),
+        levels: header.levels,
+        mode: header.mode.name(),
+        max_error_bound: header.max_error.is_finite().then_some(header.max_error),
+        value_offset: header.mapping.offset,
+        value_step: header.mapping.step,
+        nodata: header.nodata.map(|v| v.to_string()),
+        valid_min: header.valid_range.0,
+        valid_max: header.valid_range.1,
+        header_bytes: header_len as u64,
+        mask_bytes: header.mask_len,
+        payload_bytes: (header.payload_len != PAYLOAD_CUT).then_some(header.payload_len),
+        residual_bytes: header.residual_len,
+        truncated: header.payload_len != PAYLOAD_CUT && (data.len() as u64) < expected,
+        georeferenced: header.georef.is_some(),
+        geotransform: header.georef.as_ref().map(|g| g.geotransform),
+        passes,
+    };
+    if args.json {
+        print_json(&report);
+        return Ok(());
+    }
+    println!("{}: .ezw version {}, {} bytes", args.input.display(), report.format_version, report.file_bytes);
+    println!(
+        "  {}x{} {}, {} wavelet, {} levels, {} mode{}",
+        report.width,
+        report.height,
+        report.sample_type,
+        report.wavelet,
+        report.levels,
+        report.mode,
+        report.max_error_bound.map_or(String::new(), |e| format!(" (max error {e})"))
+    );
+    println!(
+        "  values {} .. {}, sample = {} + {} * q, nodata {}",
+        report.valid_min,
+        report.valid_max,
+        report.value_offset,
+        report.value_step,
+        report.nodata.as_deref().unwrap_or("none")
+    );
+    println!(
+        "  header {} B, mask {} B, payload {}, residuals {} B{}{}",
+        report.header_bytes,
+        report.mask_bytes,
+        report.payload_bytes.map_or("cut at a byte budget".to_string(), |b| format!("{b} B")),
+        report.residual_bytes,
+        if report.truncated { ", TRUNCATED" } else { "" },
+        if report.georeferenced { ", georeferenced" } else { "" }
+    );
+    println!("  {:>5} {:>12} {:>9} {:>12} {:>9}", "plane", "end byte", "bpp", "est. RMSE", "est. PSNR");
+    for p in &report.passes {
+        println!(
+            "  {:>5} {:>12} {:>9.4} {:>12.4} {:>9.2}",
+            p.plane, p.end_byte, p.bpp, p.estimated_rmse, p.estimated_psnr_db
+        );
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct CompareReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    original: &'a Path,
+    other: &'a Path,
+    #[serde(flatten)]
+    distortion: Distortion,
+}
+
+pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
+    let original = args.input_args.read(&args.original)?;
+    let other = args.input_args.read(&args.other)?;
+    let distortion = compare_rasters(&original, &other, &args.other)?;
+    if args.json {
+        print_json(&CompareReport {
+            schema_version: SCHEMA_VERSION,
+            command: "compare",
+            original: &args.original,
+            other: &args.other,
+            distortion,
+        });
+    } else {
+        print_distortion(&distortion);
+    }
+    Ok(())
+}
+
+pub(super) fn compare_rasters(original: &Raster, other: &Raster, path: &Path) -> Result<Distortion, CliError> {
+    metrics::compare(original, other).map_err(|e| CliError::Input(path.to_path_buf(), e.to_string()))
+}
+
+fn print_distortion(d: &Distortion) {
+    println!(
+        "  R {} | RMSE {:.6} | PSNR {:.3} dB | max error {} | valid samples {}{}{}",
+        d.range,
+        d.rmse,
+        d.psnr_db,
+        d.max_error,
+        d.valid_samples,
+        if d.nodata_mismatches > 0 { format!(" | nodata mismatches {}", d.nodata_mismatches) } else { String::new() },
+        if d.identical { " | bit-identical" } else { "" }
+    );
+}
+
+fn print_json<T: Serialize>(value: &T) {
+    // serde_json writes non-finite floats as null; infinite PSNR (identical) is thus null.
+    println!("{}", serde_json::to_string(value).expect("reports serialise"));
+}
+
+/// Refuses to write over the input file.
+fn refuse_overwriting_input(input: &Path, output: &Path) -> Result<(), CliError> {
+    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
+        if a == b {
+            return Err(CliError::Usage(format!("refusing to overwrite the input file {}", input.display())));
+        }
+    }
+    Ok(())
+}
+
+/// Writes bytes atomically (temp file + rename).
+pub(super) fn write_output(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    wavemesh::atomic::write_atomic(path, |w| w.write_all(bytes)).map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))
+}

@@ -1,0 +1,205 @@
+//! End-to-end tests of the `wavemesh` binary: every subcommand, JSON reports, errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn wavemesh(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn json(output: &Output) -> serde_json::Value {
+    assert!(
+        output.status.success(),
+        "command failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).expect("stdout is one JSON object")
+}
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("samples").join(name)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn lossless_round_trip_of_every_sample_is_bit_exact() {
+    for name in ["jacksboro_fault.tif", "jacksboro_voids.tif"] {
+        let input = sample(name);
+        let ezw = scratch(&format!("{name}.ezw"));
+        let out = scratch(&format!("{name}.decoded.tif"));
+        let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+        assert_eq!(enc["schema_version"], 1);
+        assert_eq!(enc["mode"], "lossless");
+        assert_eq!(enc["wavelet"], "5/3");
+        let dec = json(&wavemesh(&[
+            "decode",
+            s(&ezw),
+            "-o",
+            s(&out),
+            "--reference",
+            s(&input),
+            "--json",
+        ]));
+        assert_eq!(dec["complete"], true);
+        assert_eq!(dec["distortion"]["identical"], true, "{name} not bit-exact");
+        assert_eq!(dec["distortion"]["nodata_mismatches"], 0);
+        let cmp = json(&wavemesh(&["compare", s(&input), s(&out), "--json"]));
+        assert_eq!(cmp["max_error"], 0.0);
+        assert_eq!(cmp["identical"], true);
+    }
+}
+
+#[test]
+fn rate_budget_and_progressive_prefixes() {
+    let input = sample("jacksboro_fault.tif");
+    let ezw = scratch("rate.ezw");
+    let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--bpp", "1", "--json"]));
+    assert_eq!(enc["wavelet"], "9/7");
+    let samples = 403.0 * 344.0;
+    assert_eq!(enc["bytes"], (samples / 8.0f64).floor() as u64);
+    let mut last_psnr = 0.0;
+    for bpp in ["0.1", "0.25", "0.5", "1"] {
+        let out = scratch(&format!("rate-{bpp}.tif"));
+        let dec = json(&wavemesh(&[
+            "decode",
+            s(&ezw),
+            "-o",
+            s(&out),
+            "--bpp",
+            bpp,
+            "--reference",
+            s(&input),
+            "--json",
+        ]));
+        let psnr = dec["distortion"]["psnr_db"].as_f64().unwrap();
+        assert!(psnr > last_psnr, "PSNR {psnr} at {bpp} bpp after {last_psnr}");
+        last_psnr = psnr;
+    }
+    assert!(last_psnr > 40.0, "1 bpp gives only {last_psnr} dB");
+}
+
+#[test]
+fn max_error_is_guaranteed() {
+    let input = sample("jacksboro_voids.tif");
+    for e in ["1", "2", "5"] {
+        let ezw = scratch(&format!("e{e}.ezw"));
+        let out = scratch(&format!("e{e}.tif"));
+        let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--max-error", e, "--json"]));
+        assert_eq!(enc["mode"], "max-error");
+        let dec = json(&wavemesh(&[
+            "decode",
+            s(&ezw),
+            "-o",
+            s(&out),
+            "--reference",
+            s(&input),
+            "--json",
+        ]));
+        let max = dec["distortion"]["max_error"].as_f64().unwrap();
+        assert!(max <= e.parse::<f64>().unwrap(), "max error {max} > {e}");
+        assert_eq!(dec["distortion"]["nodata_mismatches"], 0);
+    }
+}
+
+#[test]
+fn info_lists_the_ladder() {
+    let input = sample("jacksboro_fault.tif");
+    let ezw = scratch("info.ezw");
+    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    let info = json(&wavemesh(&["info", s(&ezw), "--json"]));
+    assert_eq!(info["width"], 403);
+    assert_eq!(info["height"], 344);
+    assert_eq!(info["sample_type"], "i16");
+    assert_eq!(info["georeferenced"], true);
+    let passes = info["passes"].as_array().unwrap();
+    assert!(passes.len() > 5);
+    let ends: Vec<u64> = passes.iter().map(|p| p["end_byte"].as_u64().unwrap()).collect();
+    assert!(ends.windows(2).all(|w| w[0] <= w[1]));
+    assert_eq!(*ends.last().unwrap(), info["file_bytes"].as_u64().unwrap());
+    let text = wavemesh(&["info", s(&ezw)]);
+    assert!(text.status.success());
+    assert!(String::from_utf8_lossy(&text.stdout).contains("403x344 i16"));
+}
+
+#[test]
+fn georeferencing_and_nodata_survive_to_the_output() {
+    let input = sample("jacksboro_voids.tif");
+    let ezw = scratch("geo.ezw");
+    let out = scratch("geo.tif");
+    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    json(&wavemesh(&["decode", s(&ezw), "-o", s(&out), "--json"]));
+    let options = wavemesh::dem::ReadOptions::default();
+    let original = wavemesh::dem::read_dem(&input, &options).unwrap();
+    let decoded = wavemesh::dem::read_dem(&out, &options).unwrap();
+    assert_eq!(decoded.georef, original.georef);
+    assert_eq!(decoded.nodata, original.nodata);
+    assert_eq!(decoded.samples, original.samples);
+}
+
+#[test]
+fn bad_input_gives_one_line_errors_and_no_output() {
+    let garbage = scratch("garbage.ezw");
+    std::fs::write(&garbage, b"this is not an ezw file at all").unwrap();
+    let out = scratch("never-written.tif");
+    let _ = std::fs::remove_file(&out);
+    let result = wavemesh(&["decode", s(&garbage), "-o", s(&out)]);
+    assert_eq!(result.status.code(), Some(3));
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("not an .ezw file"), "{stderr}");
+    assert!(!out.exists());
+
+    let missing = wavemesh(&["encode", "no/such/file.tif", "-o", s(&scratch("x.ezw"))]);
+    assert_eq!(missing.status.code(), Some(3));
+
+    let input = sample("jacksboro_fault.tif");
+    let same = wavemesh(&["encode", s(&input), "-o", s(&input)]);
+    assert_eq!(same.status.code(), Some(2));
+
+    let lossy_without_rate = wavemesh(&["encode", s(&input), "-o", s(&scratch("y.ezw")), "--wavelet", "97"]);
+    assert_eq!(lossy_without_rate.status.code(), Some(2));
+}
+
+#[test]
+fn truncated_file_decodes_to_a_coarser_image() {
+    let input = sample("jacksboro_fault.tif");
+    let ezw = scratch("trunc.ezw");
+    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    let bytes = std::fs::read(&ezw).unwrap();
+    let cut = scratch("trunc-cut.ezw");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
+    let out = scratch("trunc.tif");
+    let dec = json(&wavemesh(&[
+        "decode",
+        s(&cut),
+        "-o",
+        s(&out),
+        "--reference",
+        s(&input),
+        "--json",
+    ]));
+    assert_eq!(dec["complete"], false);
+    let psnr = dec["distortion"]["psnr_db"].as_f64().unwrap();
+    assert!(psnr > 30.0 && psnr.is_finite(), "{psnr}");
+}
+
+#[test]
+fn demo_runs_on_the_bundled_sample() {
+    let dir = scratch("demo");
+    let report = json(&wavemesh(&["demo", "--out-dir", s(&dir), "--json"]));
+    let rows = report["rows"].as_array().unwrap();
+    assert!(rows.iter().any(|r| r["exact"] == true));
+    assert!(dir.join("lossless.ezw").exists());
+}
