@@ -240,7 +240,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) = with_progress("decoding", || timed(|| decode_stream(&data, &options)));
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
-    wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(|e| CliError::Output(args.output.clone(), e.to_string()))?;
+    wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let distortion = match &args.reference {
         None => None,
         Some(path) => {

@@ -69,7 +69,7 @@ impl InputArgs {
             terrain_rgb: self.terrain_rgb,
             max_samples: self.max_samples,
         };
-        dem::read_dem(path, &options).map_err(|e| CliError::Input(path.to_path_buf(), e.to_string()))
+        dem::read_dem(path, &options).map_err(CliError::Dem)
     }
 
     fn limits(&self, max_memory: u64) -> Limits {
@@ -86,6 +86,12 @@ pub enum CliError {
     /// A DEM could not be read.
     #[error("{path}: {message}", path = .0.display(), message = .1)]
     Input(PathBuf, String),
+    /// A DEM reader or writer failed (its message names the file).
+    #[error("{0}")]
+    Dem(dem::DemError),
+    /// A DEM writer failed (its message names the file).
+    #[error("{0}")]
+    DemOutput(dem::DemError),
     /// A `.ezw` file could not be decoded.
     #[error("{path}: {error}", path = .0.display(), error = .1)]
     Stream(PathBuf, CodecError),
@@ -106,8 +112,8 @@ impl CliError {
     pub fn exit_code(&self) -> u8 {
         match self {
             CliError::Usage(_) => 2,
-            CliError::Input(..) | CliError::Stream(..) => 3,
-            CliError::Output(..) => 4,
+            CliError::Input(..) | CliError::Stream(..) | CliError::Dem(_) => 3,
+            CliError::Output(..) | CliError::DemOutput(_) => 4,
             CliError::Encode(_) => 1,
         }
     }
