@@ -6,3 +6,4 @@ pub mod atomic;
 pub mod dem;
 pub mod memory;
 pub mod metrics;
+pub mod report;

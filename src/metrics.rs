@@ -32,7 +32,12 @@ pub struct SizeMismatch(pub usize, pub usize, pub usize, pub usize);
 /// Compares `decoded` with `original` sample by sample.
 pub fn compare(original: &Raster, decoded: &Raster) -> Result<Distortion, SizeMismatch> {
     if original.width != decoded.width || original.height != decoded.height {
-        return Err(SizeMismatch(original.width, original.height, decoded.width, decoded.height));
+        return Err(SizeMismatch(
+            original.width,
+            original.height,
+            decoded.width,
+            decoded.height,
+        ));
     }
     let mut valid_samples = 0u64;
     let mut nodata_mismatches = 0u64;
@@ -65,7 +70,11 @@ pub fn compare(original: &Raster, decoded: &Raster) -> Result<Distortion, SizeMi
         }
     }
     let range = if valid_samples > 0 { hi - lo } else { 0.0 };
-    let rmse = if valid_samples > 0 { (sum_sq / valid_samples as f64).sqrt() } else { 0.0 };
+    let rmse = if valid_samples > 0 {
+        (sum_sq / valid_samples as f64).sqrt()
+    } else {
+        0.0
+    };
     Ok(Distortion {
         valid_samples,
         nodata_mismatches,

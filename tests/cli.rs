@@ -20,7 +20,9 @@ fn json(output: &Output) -> serde_json::Value {
 }
 
 fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("samples").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("samples")
+        .join(name)
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -65,7 +67,15 @@ fn lossless_round_trip_of_every_sample_is_bit_exact() {
 fn rate_budget_and_progressive_prefixes() {
     let input = sample("jacksboro_fault.tif");
     let ezw = scratch("rate.ezw");
-    let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--bpp", "1", "--json"]));
+    let enc = json(&wavemesh(&[
+        "encode",
+        s(&input),
+        "-o",
+        s(&ezw),
+        "--bpp",
+        "1",
+        "--json",
+    ]));
     assert_eq!(enc["wavelet"], "9/7");
     let samples = 403.0 * 344.0;
     assert_eq!(enc["bytes"], (samples / 8.0f64).floor() as u64);
@@ -84,7 +94,10 @@ fn rate_budget_and_progressive_prefixes() {
             "--json",
         ]));
         let psnr = dec["distortion"]["psnr_db"].as_f64().unwrap();
-        assert!(psnr > last_psnr, "PSNR {psnr} at {bpp} bpp after {last_psnr}");
+        assert!(
+            psnr > last_psnr,
+            "PSNR {psnr} at {bpp} bpp after {last_psnr}"
+        );
         last_psnr = psnr;
     }
     assert!(last_psnr > 40.0, "1 bpp gives only {last_psnr} dB");
@@ -96,7 +109,15 @@ fn max_error_is_guaranteed() {
     for e in ["1", "2", "5"] {
         let ezw = scratch(&format!("e{e}.ezw"));
         let out = scratch(&format!("e{e}.tif"));
-        let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--max-error", e, "--json"]));
+        let enc = json(&wavemesh(&[
+            "encode",
+            s(&input),
+            "-o",
+            s(&ezw),
+            "--max-error",
+            e,
+            "--json",
+        ]));
         assert_eq!(enc["mode"], "max-error");
         let dec = json(&wavemesh(&[
             "decode",
@@ -125,7 +146,10 @@ fn info_lists_the_ladder() {
     assert_eq!(info["georeferenced"], true);
     let passes = info["passes"].as_array().unwrap();
     assert!(passes.len() > 5);
-    let ends: Vec<u64> = passes.iter().map(|p| p["end_byte"].as_u64().unwrap()).collect();
+    let ends: Vec<u64> = passes
+        .iter()
+        .map(|p| p["end_byte"].as_u64().unwrap())
+        .collect();
     assert!(ends.windows(2).all(|w| w[0] <= w[1]));
     assert_eq!(*ends.last().unwrap(), info["file_bytes"].as_u64().unwrap());
     let text = wavemesh(&["info", s(&ezw)]);
@@ -168,7 +192,14 @@ fn bad_input_gives_one_line_errors_and_no_output() {
     let same = wavemesh(&["encode", s(&input), "-o", s(&input)]);
     assert_eq!(same.status.code(), Some(2));
 
-    let lossy_without_rate = wavemesh(&["encode", s(&input), "-o", s(&scratch("y.ezw")), "--wavelet", "97"]);
+    let lossy_without_rate = wavemesh(&[
+        "encode",
+        s(&input),
+        "-o",
+        s(&scratch("y.ezw")),
+        "--wavelet",
+        "97",
+    ]);
     assert_eq!(lossy_without_rate.status.code(), Some(2));
 }
 

@@ -764,7 +764,10 @@ impl Decoder {
     /// are known.
     pub fn integer_coefficients(self) -> Vec<i32> {
         let Decoder {
-            values, grid, width, ..
+            values,
+            grid,
+            width,
+            ..
         } = self;
         let mut out = values;
         for (i, v) in out.iter_mut().enumerate() {

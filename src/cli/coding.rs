@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 use wavemesh::metrics::{self, Distortion};
 use wavemesh_codec::container::PAYLOAD_CUT;
-use wavemesh_codec::{decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header, Quality, Raster};
+use wavemesh_codec::{
+    decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header,
+    Quality, Raster,
+};
 
 use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
 
@@ -123,7 +126,11 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     let samples = (raster.width * raster.height) as f64;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
-        Some(bpp) => return Err(CliError::Usage(format!("--bpp must be positive, got {bpp}"))),
+        Some(bpp) => {
+            return Err(CliError::Usage(format!(
+                "--bpp must be positive, got {bpp}"
+            )))
+        }
         None => None,
     };
     let quality = match (args.max_error, args.precision) {
@@ -136,10 +143,13 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         options.wavelet = w.into();
     }
     if options.wavelet == wavemesh_codec::Wavelet::Cdf97 && budget.is_none() {
-        return Err(CliError::Usage("the 9/7 wavelet is lossy: give a rate with --bpp".into()));
+        return Err(CliError::Usage(
+            "the 9/7 wavelet is lossy: give a rate with --bpp".into(),
+        ));
     }
     options.levels = args.levels;
-    let (encoded, seconds, peak) = with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
+    let (encoded, seconds, peak) =
+        with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
     let encoded = encoded.map_err(CliError::Encode)?;
     write_output(&args.output, &encoded.bytes)?;
     let distortion = match &args.reference {
@@ -168,7 +178,11 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         header_bytes: encoded.header_len as u64,
         mask_bytes: header.mask_len as u64,
         bpp: metrics::bits_per_sample(encoded.bytes.len() as u64, raster.width, raster.height),
-        passes: header.passes.iter().filter(|p| p.end_byte != PAYLOAD_CUT).count(),
+        passes: header
+            .passes
+            .iter()
+            .filter(|p| p.end_byte != PAYLOAD_CUT)
+            .count(),
         complete: header.payload_len != PAYLOAD_CUT,
         encode_seconds: seconds,
         encode_msamples_per_second: samples / seconds / 1e6,
@@ -187,7 +201,9 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             report.sample_type,
             report.wavelet,
             report.mode,
-            report.max_error_bound.map_or("no error bound".to_string(), |e| format!("max error {e}")),
+            report
+                .max_error_bound
+                .map_or("no error bound".to_string(), |e| format!("max error {e}")),
             report.bytes,
             report.bpp,
             seconds,
@@ -224,12 +240,19 @@ struct DecodeReport<'a> {
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
-    let data = std::fs::read(&args.input).map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    let data = std::fs::read(&args.input)
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
     let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
-        (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples as f64 / 8.0).floor() as u64),
-        (Some(bpp), _) => return Err(CliError::Usage(format!("--bpp must be positive, got {bpp}"))),
+        (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {
+            Some((bpp * samples as f64 / 8.0).floor() as u64)
+        }
+        (Some(bpp), _) => {
+            return Err(CliError::Usage(format!(
+                "--bpp must be positive, got {bpp}"
+            )))
+        }
         (None, bytes) => bytes,
     };
     let options = DecodeOptions {
@@ -238,7 +261,8 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         limits: args.input_args.limits(args.max_memory),
     };
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
-    let (decoded, seconds, peak) = with_progress("decoding", || timed(|| decode_stream(&data, &options)));
+    let (decoded, seconds, peak) =
+        with_progress("decoding", || timed(|| decode_stream(&data, &options)));
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let distortion = match &args.reference {
@@ -331,13 +355,18 @@ struct InfoReport<'a> {
 }
 
 pub fn info(args: &InfoArgs) -> Result<(), CliError> {
-    let data = std::fs::read(&args.input).map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let (header, header_len) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let data = std::fs::read(&args.input)
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    let (header, header_len) =
+        Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let (w, h) = (header.width as usize, header.height as usize);
     let payload_start = (header_len + header.mask_len as usize) as u64;
     let valid = if header.mask_len > 0 {
         let mask_bytes = data.get(header_len..payload_start as usize).unwrap_or(&[]);
-        wavemesh_codec::mask::decode_mask(mask_bytes, w, w * h).iter().filter(|&&v| v).count()
+        wavemesh_codec::mask::decode_mask(mask_bytes, w, w * h)
+            .iter()
+            .filter(|&&v| v)
+            .count()
     } else {
         w * h
     } as f64;
@@ -357,7 +386,12 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
             }
         })
         .collect::<Vec<_>>();
-    let expected = payload_start + if header.payload_len == PAYLOAD_CUT { 0 } else { header.payload_len + header.residual_len as u64 };
+    let expected = payload_start
+        + if header.payload_len == PAYLOAD_CUT {
+            0
+        } else {
+            header.payload_len + header.residual_len as u64
+        };
     let report = InfoReport {
         schema_version: SCHEMA_VERSION,
         command: "info",
@@ -389,7 +423,12 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         print_json(&report);
         return Ok(());
     }
-    println!("{}: .ezw version {}, {} bytes", args.input.display(), report.format_version, report.file_bytes);
+    println!(
+        "{}: .ezw version {}, {} bytes",
+        args.input.display(),
+        report.format_version,
+        report.file_bytes
+    );
     println!(
         "  {}x{} {}, {} wavelet, {} levels, {} mode{}",
         report.width,
@@ -398,7 +437,9 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         report.wavelet,
         report.levels,
         report.mode,
-        report.max_error_bound.map_or(String::new(), |e| format!(" (max error {e})"))
+        report
+            .max_error_bound
+            .map_or(String::new(), |e| format!(" (max error {e})"))
     );
     println!(
         "  values {} .. {}, sample = {} + {} * q, nodata {}",
@@ -412,12 +453,21 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         "  header {} B, mask {} B, payload {}, residuals {} B{}{}",
         report.header_bytes,
         report.mask_bytes,
-        report.payload_bytes.map_or("cut at a byte budget".to_string(), |b| format!("{b} B")),
+        report
+            .payload_bytes
+            .map_or("cut at a byte budget".to_string(), |b| format!("{b} B")),
         report.residual_bytes,
         if report.truncated { ", TRUNCATED" } else { "" },
-        if report.georeferenced { ", georeferenced" } else { "" }
+        if report.georeferenced {
+            ", georeferenced"
+        } else {
+            ""
+        }
     );
-    println!("  {:>5} {:>12} {:>9} {:>12} {:>9}", "plane", "end byte", "bpp", "est. RMSE", "est. PSNR");
+    println!(
+        "  {:>5} {:>12} {:>9} {:>12} {:>9}",
+        "plane", "end byte", "bpp", "est. RMSE", "est. PSNR"
+    );
     for p in &report.passes {
         println!(
             "  {:>5} {:>12} {:>9.4} {:>12.4} {:>9.2}",
@@ -455,8 +505,13 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-pub(super) fn compare_rasters(original: &Raster, other: &Raster, path: &Path) -> Result<Distortion, CliError> {
-    metrics::compare(original, other).map_err(|e| CliError::Input(path.to_path_buf(), e.to_string()))
+pub(super) fn compare_rasters(
+    original: &Raster,
+    other: &Raster,
+    path: &Path,
+) -> Result<Distortion, CliError> {
+    metrics::compare(original, other)
+        .map_err(|e| CliError::Input(path.to_path_buf(), e.to_string()))
 }
 
 fn print_distortion(d: &Distortion) {
@@ -467,21 +522,31 @@ fn print_distortion(d: &Distortion) {
         d.psnr_db,
         d.max_error,
         d.valid_samples,
-        if d.nodata_mismatches > 0 { format!(" | nodata mismatches {}", d.nodata_mismatches) } else { String::new() },
+        if d.nodata_mismatches > 0 {
+            format!(" | nodata mismatches {}", d.nodata_mismatches)
+        } else {
+            String::new()
+        },
         if d.identical { " | bit-identical" } else { "" }
     );
 }
 
 fn print_json<T: Serialize>(value: &T) {
     // serde_json writes non-finite floats as null; infinite PSNR (identical) is thus null.
-    println!("{}", serde_json::to_string(value).expect("reports serialise"));
+    println!(
+        "{}",
+        serde_json::to_string(value).expect("reports serialise")
+    );
 }
 
 /// Refuses to write over the input file.
 fn refuse_overwriting_input(input: &Path, output: &Path) -> Result<(), CliError> {
     if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
         if a == b {
-            return Err(CliError::Usage(format!("refusing to overwrite the input file {}", input.display())));
+            return Err(CliError::Usage(format!(
+                "refusing to overwrite the input file {}",
+                input.display()
+            )));
         }
     }
     Ok(())
@@ -489,5 +554,6 @@ fn refuse_overwriting_input(input: &Path, output: &Path) -> Result<(), CliError>
 
 /// Writes bytes atomically (temp file + rename).
 pub(super) fn write_output(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    wavemesh::atomic::write_atomic(path, |w| w.write_all(bytes)).map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))
+    wavemesh::atomic::write_atomic(path, |w| w.write_all(bytes))
+        .map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))
 }

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use wavemesh::metrics::{self, Distortion};
-use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Encoded, Quality, Raster, Wavelet};
+use wavemesh_codec::{
+    decode, encode, DecodeOptions, EncodeOptions, Encoded, Quality, Raster, Wavelet,
+};
 
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
 use super::{timed, CliError, InputArgs};
@@ -83,7 +85,9 @@ fn decode_row(
     let (decoded, seconds, _) = timed(|| decode(&encoded.bytes, &options));
     let decoded = decoded.map_err(|e| CliError::Stream(PathBuf::from(stream), e))?;
     let d: Distortion = compare_rasters(raster, &decoded.raster, Path::new(stream))?;
-    let bytes = max_bytes.map_or(encoded.bytes.len() as u64, |m| m.min(encoded.bytes.len() as u64));
+    let bytes = max_bytes.map_or(encoded.bytes.len() as u64, |m| {
+        m.min(encoded.bytes.len() as u64)
+    });
     Ok(Row {
         stream: stream.to_string(),
         decoded_at: label,
@@ -101,22 +105,32 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let path = sample_path(args);
     let raster = args.input_args.read(&path)?;
     let samples = (raster.width * raster.height) as f64;
-    std::fs::create_dir_all(&args.out_dir).map_err(|e| CliError::Output(args.out_dir.clone(), e.to_string()))?;
+    std::fs::create_dir_all(&args.out_dir)
+        .map_err(|e| CliError::Output(args.out_dir.clone(), e.to_string()))?;
     let mut rows = Vec::new();
 
     // Lossless 5/3.
-    let (lossless, seconds) = encode_or_fail(&raster, &EncodeOptions::new(Quality::Lossless, None))?;
+    let (lossless, seconds) =
+        encode_or_fail(&raster, &EncodeOptions::new(Quality::Lossless, None))?;
     write_output(&args.out_dir.join("lossless.ezw"), &lossless.bytes)?;
     let mut row = decode_row(&raster, &lossless, "5/3 lossless", None, "all".into())?;
     row.seconds += seconds;
     if !row.exact {
-        return Err(CliError::Usage("lossless round trip is not bit-exact".into()));
+        return Err(CliError::Usage(
+            "lossless round trip is not bit-exact".into(),
+        ));
     }
     rows.push(row);
     let rates = [0.1, 0.25, 0.5, 1.0, 2.0];
     for &rate in &rates {
         let bytes = (rate * samples / 8.0) as u64;
-        rows.push(decode_row(&raster, &lossless, "5/3 lossless", Some(bytes), format!("prefix {rate} bpp"))?);
+        rows.push(decode_row(
+            &raster,
+            &lossless,
+            "5/3 lossless",
+            Some(bytes),
+            format!("prefix {rate} bpp"),
+        )?);
     }
 
     // One 9/7 stream at 2 bpp, decoded at every rate.
@@ -126,17 +140,36 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     write_output(&args.out_dir.join("lossy-2bpp.ezw"), &lossy.bytes)?;
     for &rate in &rates {
         let bytes = (rate * samples / 8.0) as u64;
-        rows.push(decode_row(&raster, &lossy, "9/7 --bpp 2", Some(bytes), format!("prefix {rate} bpp"))?);
+        rows.push(decode_row(
+            &raster,
+            &lossy,
+            "9/7 --bpp 2",
+            Some(bytes),
+            format!("prefix {rate} bpp"),
+        )?);
     }
 
     // Error-bounded 5/3 streams.
     for e in [0.5, 1.0, 2.0] {
-        let (bounded, seconds) = encode_or_fail(&raster, &EncodeOptions::new(Quality::MaxError(e), None))?;
-        write_output(&args.out_dir.join(format!("max-error-{e}.ezw")), &bounded.bytes)?;
-        let mut row = decode_row(&raster, &bounded, &format!("5/3 --max-error {e}"), None, "all".into())?;
+        let (bounded, seconds) =
+            encode_or_fail(&raster, &EncodeOptions::new(Quality::MaxError(e), None))?;
+        write_output(
+            &args.out_dir.join(format!("max-error-{e}.ezw")),
+            &bounded.bytes,
+        )?;
+        let mut row = decode_row(
+            &raster,
+            &bounded,
+            &format!("5/3 --max-error {e}"),
+            None,
+            "all".into(),
+        )?;
         row.seconds += seconds;
         if row.max_error > e {
-            return Err(CliError::Usage(format!("max error {} exceeds the bound {e}", row.max_error)));
+            return Err(CliError::Usage(format!(
+                "max error {} exceeds the bound {e}",
+                row.max_error
+            )));
         }
         rows.push(row);
     }
@@ -153,7 +186,10 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         rows,
     };
     if args.json {
-        println!("{}", serde_json::to_string(&report).expect("reports serialise"));
+        println!(
+            "{}",
+            serde_json::to_string(&report).expect("reports serialise")
+        );
         return Ok(());
     }
     println!(
@@ -174,7 +210,11 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             r.decoded_at,
             r.bytes,
             r.bpp,
-            if r.psnr_db.is_finite() { format!("{:.2}", r.psnr_db) } else { "∞".into() },
+            if r.psnr_db.is_finite() {
+                format!("{:.2}", r.psnr_db)
+            } else {
+                "∞".into()
+            },
             r.rmse,
             r.max_error,
             if r.exact { "yes" } else { "" },

@@ -2,6 +2,7 @@
 
 mod coding;
 mod demo;
+mod report;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -30,6 +31,8 @@ enum Command {
     Compare(coding::CompareArgs),
     /// Run the bundled sample end to end and print the results table.
     Demo(demo::DemoArgs),
+    /// Measure every DEM of a manifest folder beside the peer tools' results (README tables).
+    Report(report::ReportArgs),
 }
 
 /// Wavelet choice on the command line.
@@ -127,6 +130,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Info(args) => coding::info(&args),
         Command::Compare(args) => coding::compare(&args),
         Command::Demo(args) => demo::run(&args),
+        Command::Report(args) => report::run(&args),
     }
 }
 
