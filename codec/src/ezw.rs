@@ -743,21 +743,32 @@ impl Decoder {
         }
     }
 
-    /// Reconstructs every coefficient mid-interval, returned as `f64` via `store`.
-    pub fn dequantise(&self, midpoint: Midpoint, mut store: impl FnMut(usize, f64)) {
-        for (y, row) in self.values.chunks(self.width).enumerate() {
-            let flags = &self.grid.flags[self.grid.at(0, y)..][..self.width];
-            for (x, (&v, &f)) in row.iter().zip(flags).enumerate() {
-                let i = y * self.width + x;
-                if f & SIG == 0 {
-                    store(i, 0.0);
-                    continue;
+    /// Real reconstruction (9/7): every coefficient mid-interval ([`Midpoint::Real`]),
+    /// in quantiser units, reusing the coefficient buffer.
+    pub fn into_real_coefficients(self) -> Vec<f32> {
+        let Decoder {
+            values,
+            grid,
+            width,
+            ..
+        } = self;
+        let (mut x, mut y) = (0, 0);
+        values
+            .into_iter()
+            .map(|v| {
+                let f = grid.flags[grid.at(x, y)];
+                x += 1;
+                if x == width {
+                    x = 0;
+                    y += 1;
                 }
-                let p = (f >> PLANE_SHIFT) as u32;
-                let magnitude = midpoint.value(v.unsigned_abs(), p);
-                store(i, if v < 0 { -magnitude } else { magnitude });
-            }
-        }
+                if f & SIG == 0 {
+                    return 0.0;
+                }
+                let magnitude = Midpoint::Real.value(v.unsigned_abs(), (f >> PLANE_SHIFT) as u32);
+                (if v < 0 { -magnitude } else { magnitude }) as f32
+            })
+            .collect()
     }
 
     /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits

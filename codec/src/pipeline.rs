@@ -452,11 +452,57 @@ pub struct Decoded {
     pub bytes_used: u64,
 }
 
+/// Builds output samples from reconstructed values, in place where the output type is no
+/// wider than the input: integers are rounded and clamped to the type's range, floats
+/// narrowed with `as f32`; where `mask` is false the sample is `nodata` (NaN if none).
+fn to_samples<X: Copy>(
+    sample_type: SampleType,
+    values: Vec<X>,
+    value_of: impl Fn(X) -> f64,
+    mask: Option<&[bool]>,
+    nodata: Option<f64>,
+) -> Samples {
+    let fill = nodata.unwrap_or(f64::NAN);
+    let (lo, hi) = sample_type.value_range();
+    let value = |i: usize, x: X| -> f64 {
+        if mask.is_some_and(|m| !m[i]) {
+            fill
+        } else {
+            value_of(x)
+        }
+    };
+    let int = |i: usize, x: X| -> f64 {
+        let v = value(i, x);
+        if v.is_nan() {
+            0.0
+        } else {
+            v.round().clamp(lo, hi)
+        }
+    };
+    let values = values.into_iter().enumerate();
+    let mut samples = match sample_type {
+        SampleType::U8 => Samples::U8(values.map(|(i, x)| int(i, x) as u8).collect()),
+        SampleType::U16 => Samples::U16(values.map(|(i, x)| int(i, x) as u16).collect()),
+        SampleType::I16 => Samples::I16(values.map(|(i, x)| int(i, x) as i16).collect()),
+        SampleType::I32 => Samples::I32(values.map(|(i, x)| int(i, x) as i32).collect()),
+        SampleType::F32 => Samples::F32(values.map(|(i, x)| value(i, x) as f32).collect()),
+    };
+    // The in-place collect keeps the input's capacity: give the surplus back.
+    match &mut samples {
+        Samples::U8(v) => v.shrink_to_fit(),
+        Samples::U16(v) => v.shrink_to_fit(),
+        Samples::I16(v) => v.shrink_to_fit(),
+        Samples::I32(v) => v.shrink_to_fit(),
+        Samples::F32(v) => v.shrink_to_fit(),
+    }
+    samples
+}
+
 /// Working memory a decode needs, in bytes (used for the limit check).
 pub fn decode_memory(header: &Header) -> u64 {
     let n = header.sample_count();
-    // coefficients (4) + flags (1) + output samples + mask (1 when present).
-    n * (5 + header.sample_type.bytes() as u64 + (header.mask_len > 0) as u64)
+    // coefficients (4, reused for the output) + flags (1) + mask (1 when present).
+    n * (5 + (header.mask_len > 0) as u64)
 }
 
 /// Decodes a `.ezw` file, or as much of it as `options.max_bytes` (or the data) holds.
@@ -518,19 +564,26 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     );
     let passes_decoded = decoder.passes_completed;
     let ezw_complete = decoder.complete && payload_complete;
-    let mut values: Vec<f64> = match header.wavelet {
+    // Reconstruct in place: the coefficient buffer becomes the image, then the samples
+    // (in-place collects reuse the allocation), so the decode never holds two full-size
+    // buffers of more than the output's size.
+    let mapping = header.mapping;
+    let nodata = header.nodata;
+    let mask_ref = mask.as_deref();
+    let mut samples = match header.wavelet {
         Wavelet::Int53 => {
             let mut coefficients = decoder.integer_coefficients();
             wavelet::inverse_53(&mut coefficients, width, height, levels);
-            coefficients
-                .into_iter()
-                .map(|q| header.mapping.value(q as f64))
-                .collect()
+            to_samples(
+                header.sample_type,
+                coefficients,
+                |q| mapping.value(q as f64),
+                mask_ref,
+                nodata,
+            )
         }
         Wavelet::Cdf97 => {
-            let mut data = vec![0f32; n];
-            decoder.dequantise(Midpoint::Real, |i, v| data[i] = v as f32);
-            drop(decoder);
+            let mut data = decoder.into_real_coefficients();
             for (sub, &(_, band_scale)) in subbands.iter().zip(&header.bands) {
                 let scale = (header.coefficient_step / band_scale) as f32;
                 for y in 0..sub.height {
@@ -541,53 +594,33 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
                 }
             }
             wavelet::inverse_97(&mut data, width, height, levels);
-            data.into_iter()
-                .map(|x| header.mapping.value(x as f64))
-                .collect()
+            to_samples(
+                header.sample_type,
+                data,
+                |x| mapping.value(x as f64),
+                mask_ref,
+                nodata,
+            )
         }
     };
     // Lossless floats off a grid: apply the exact residuals once everything else is there.
     let residual_start = mask_end + payload.len();
-    let mut exact_floats: Option<Vec<f32>> = None;
-    if ezw_complete && header.residual_len > 0 && header.sample_type == SampleType::F32 {
-        if let Some(bytes) = data.get(residual_start..residual_start + header.residual_len as usize)
-        {
-            let valid_count = mask
-                .as_ref()
-                .map_or(n, |m| m.iter().filter(|&&v| v).count());
-            let residuals = decode_residuals(bytes, valid_count);
-            let mut out: Vec<f32> = values.iter().map(|&v| v as f32).collect();
-            let mut next = residuals.into_iter();
-            for (i, value) in out.iter_mut().enumerate() {
-                if mask.as_ref().is_none_or(|m| m[i]) {
-                    let r = next.next().unwrap_or(0);
+    let mut residuals_complete = header.residual_len == 0;
+    if let Samples::F32(floats) = &mut samples {
+        let residual_bytes =
+            data.get(residual_start..residual_start + header.residual_len as usize);
+        if let Some(bytes) = residual_bytes.filter(|_| ezw_complete && header.residual_len > 0) {
+            let valid_count = mask_ref.map_or(n, |m| m.iter().filter(|&&v| v).count());
+            let mut residuals = decode_residuals(bytes, valid_count).into_iter();
+            for (i, value) in floats.iter_mut().enumerate() {
+                if mask_ref.is_none_or(|m| m[i]) {
+                    let r = residuals.next().unwrap_or(0);
                     *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
                 }
             }
-            exact_floats = Some(out);
+            residuals_complete = true;
         }
     }
-    let residuals_complete = header.residual_len == 0 || exact_floats.is_some();
-    let samples = match exact_floats {
-        Some(mut floats) => {
-            if let Some(mask) = &mask {
-                let fill = header.nodata.unwrap_or(f64::NAN) as f32;
-                for (v, &m) in floats.iter_mut().zip(mask) {
-                    if !m {
-                        *v = fill;
-                    }
-                }
-            }
-            Samples::F32(floats)
-        }
-        None => {
-            if header.sample_type.is_integer() {
-                let (lo, hi) = header.sample_type.value_range();
-                values.iter_mut().for_each(|v| *v = v.clamp(lo, hi));
-            }
-            quantize::to_samples(header.sample_type, &values, mask.as_deref(), header.nodata)
-        }
-    };
     let mut raster = Raster::new(width, height, samples)?;
     raster.nodata = header.nodata;
     raster.georef = header.georef.clone();

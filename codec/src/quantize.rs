@@ -16,7 +16,7 @@
 //! surroundings ([`fill_voids`]) so they cost almost nothing; the mask restores them.
 
 use crate::error::CodecError;
-use crate::raster::{Raster, SampleType, Samples};
+use crate::raster::Raster;
 
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
 pub const MAX_INTEGER_MAGNITUDE: f64 = (1u64 << 26) as f64;
@@ -271,28 +271,6 @@ pub fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]
             if count > 0.0 {
                 values[i] = sum / count;
             }
-        }
-    }
-}
-
-/// Builds the output samples from reconstructed values (`f64`, before narrowing), putting
-/// `nodata` (or NaN for floats without one) where `mask` is false.
-pub fn to_samples(
-    sample_type: SampleType,
-    values: &[f64],
-    mask: Option<&[bool]>,
-    nodata: Option<f64>,
-) -> Samples {
-    match mask {
-        None => Samples::from_f64(sample_type, values),
-        Some(mask) => {
-            let fill = nodata.unwrap_or(f64::NAN);
-            let with_voids: Vec<f64> = values
-                .iter()
-                .zip(mask)
-                .map(|(&v, &m)| if m { v } else { fill })
-                .collect();
-            Samples::from_f64(sample_type, &with_voids)
         }
     }
 }
