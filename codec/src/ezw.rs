@@ -33,7 +33,6 @@ use crate::wavelet::{Orientation, Subband};
 /// Flag bits kept per coefficient during a scan.
 const SIG: u8 = 1; // significant
 const NEW: u8 = 2; // became significant in the current pass (no refinement bit yet)
-const ZT: u8 = 4; // inside (or root of) a zerotree in the current pass
 const PLANE_SHIFT: u32 = 3; // bits 3..8: lowest plane known for a significant coefficient
 
 /// Highest global plane a stream may use (descendant plane masks are `u64`).
@@ -192,18 +191,28 @@ trait Side {
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
 /// neighbour lookups need no bounds checks: coefficient (x, y) sits at
-/// `(y + 1) · stride + x + 1` with `stride = width + 2`.
+/// `(y + 1) · stride + x + 1` with `stride = width + 2`. Beside the bytes, two bitmaps
+/// (one bit per coefficient, rows padded to whole 64-bit words) let the scans jump
+/// straight to the coefficients that need a decision: `sig_bits` mirrors [`SIG`] and
+/// `zt_bits` holds the zerotree coverage of the current pass.
 #[derive(Debug, Clone)]
 struct FlagGrid {
     flags: Vec<u8>,
     stride: usize,
+    sig_bits: Vec<u64>,
+    zt_bits: Vec<u64>,
+    words_per_row: usize,
 }
 
 impl FlagGrid {
     fn new(width: usize, height: usize) -> FlagGrid {
+        let words_per_row = width.div_ceil(64);
         FlagGrid {
             flags: vec![0; (width + 2) * (height + 2)],
             stride: width + 2,
+            sig_bits: vec![0; words_per_row * height],
+            zt_bits: vec![0; words_per_row * height],
+            words_per_row,
         }
     }
 
@@ -211,6 +220,12 @@ impl FlagGrid {
     #[inline]
     fn at(&self, x: usize, y: usize) -> usize {
         (y + 1) * self.stride + x + 1
+    }
+
+    /// Bit index of coefficient (x, y) in the bitmaps.
+    #[inline]
+    fn bit(&self, x: usize, y: usize) -> usize {
+        y * self.words_per_row * 64 + x
     }
 
     /// Significant neighbours of flag index `f`: (left+right+up+down capped at 2, any
@@ -224,6 +239,50 @@ impl FlagGrid {
         let diag = sig(f - s - 1) | sig(f - s + 1) | sig(f + s - 1) | sig(f + s + 1);
         (hv.min(2), diag)
     }
+}
+
+/// `len` (1..=64) bits of `words` starting at bit `start`, in the low bits.
+#[inline]
+fn extract_bits(words: &[u64], start: usize, len: usize) -> u64 {
+    let (w, o) = (start / 64, start % 64);
+    let mut v = words[w] >> o;
+    if o > 0 && o + len > 64 {
+        v |= words[w + 1] << (64 - o);
+    }
+    if len < 64 {
+        v & ((1u64 << len) - 1)
+    } else {
+        v
+    }
+}
+
+/// Writes the low `len` (1..=64) bits of `value` at bit `start` of `words`.
+#[inline]
+fn deposit_bits(words: &mut [u64], start: usize, len: usize, value: u64) {
+    let mask = if len < 64 {
+        (1u64 << len) - 1
+    } else {
+        u64::MAX
+    };
+    let value = value & mask;
+    let (w, o) = (start / 64, start % 64);
+    words[w] = (words[w] & !(mask << o)) | (value << o);
+    if o > 0 && o + len > 64 {
+        let high = mask >> (64 - o);
+        words[w + 1] = (words[w + 1] & !high) | (value >> (64 - o));
+    }
+}
+
+/// Doubles every bit of `x`: bit k goes to bits 2k and 2k + 1 (parent → two children).
+#[inline]
+fn spread_bits(x: u32) -> u64 {
+    let mut v = x as u64;
+    v = (v | (v << 16)) & 0x0000_FFFF_0000_FFFF;
+    v = (v | (v << 8)) & 0x00FF_00FF_00FF_00FF;
+    v = (v | (v << 4)) & 0x0F0F_0F0F_0F0F_0F0F;
+    v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+    v = (v | (v << 1)) & 0x5555_5555_5555_5555;
+    v | (v << 1)
 }
 
 /// Where a band's parents are, resolved once per pass.
@@ -251,15 +310,25 @@ fn scan_pass<S: Side>(
 ) -> ScanEnd {
     let w = layout.width;
     let stride = grid.stride;
-    // Dominant scan.
+    // Dominant scan, 64 coefficients of a band row at a time: the bitmaps give the
+    // coefficients that are neither significant nor covered by their parent's zerotree,
+    // and only those get decisions.
     for (b, band) in layout.bands.iter().enumerate() {
         let sub = band.sub;
-        if n < band.shift || sub.width == 0 || sub.height == 0 {
+        if sub.width == 0 || sub.height == 0 {
+            continue;
+        }
+        if n < band.shift {
             // Every bit of this band is known already: it covers none of its children.
             for y in 0..sub.height {
-                let row = grid.at(sub.x0, sub.y0 + y);
-                for f in &mut grid.flags[row..row + sub.width] {
-                    *f &= !ZT;
+                let row = grid.bit(sub.x0, sub.y0 + y);
+                for chunk in (0..sub.width).step_by(64) {
+                    deposit_bits(
+                        &mut grid.zt_bits,
+                        row + chunk,
+                        (sub.width - chunk).min(64),
+                        0,
+                    );
                 }
             }
             continue;
@@ -285,63 +354,85 @@ fn scan_pass<S: Side>(
             let gy = sub.y0 + y;
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
-            // Flag index of the parent row (start of the parent band's row), if any.
+            let row_bit = grid.bit(sub.x0, gy);
+            // Bit index of the parent row's first coefficient, if the row has parents.
             let parent_row = parent.as_ref().and_then(|pb| {
                 let py = if pb.halve { y / 2 } else { y };
-                (py < pb.height).then(|| (grid.at(pb.x0, pb.y0 + py), pb.width, pb.halve))
+                (py < pb.height).then(|| (grid.bit(pb.x0, pb.y0 + py), pb.width, pb.halve))
             });
-            for x in 0..sub.width {
-                let fi = row_f + x;
-                let i = row_i + x;
-                let f = grid.flags[fi];
-                let parent_flags = match parent_row {
-                    Some((start, pw, halve)) => {
-                        let px = if halve { x >> 1 } else { x };
-                        if px < pw {
-                            grid.flags[start + px]
-                        } else {
-                            0
-                        }
+            for chunk in (0..sub.width).step_by(64) {
+                let len = (sub.width - chunk).min(64);
+                let covered = match parent_row {
+                    Some((start, pw, true)) if chunk / 2 < pw => {
+                        let plen = (pw - chunk / 2).min(32);
+                        spread_bits(extract_bits(&grid.zt_bits, start + chunk / 2, plen) as u32)
                     }
-                    None => 0,
+                    Some((start, pw, false)) if chunk < pw => {
+                        extract_bits(&grid.zt_bits, start + chunk, (pw - chunk).min(64))
+                    }
+                    _ => 0,
                 };
-                if f & SIG != 0 || parent_flags & ZT != 0 {
-                    // Skipped: a significant coefficient is a zero placeholder that passes
-                    // its parent's zerotree on to its own descendants.
-                    grid.flags[fi] = (f & !ZT) | (parent_flags & ZT);
-                    continue;
-                }
-                let parent_sig = (parent_flags & SIG) as usize;
-                let (hv, diag) = grid.neighbourhood(fi);
-                let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
-                let significant = side.significance(i, p, &mut contexts.significance[ctx]);
-                if side.stopped() {
-                    return ScanEnd::Stopped;
-                }
-                if significant {
-                    let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
-                    let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
-                    let sctx = (orientation * 3 + left) * 3 + up;
-                    let negative = side.sign(i, &mut contexts.sign[sctx]);
-                    if side.stopped() {
-                        return ScanEnd::Stopped;
-                    }
-                    side.commit_significant(i, b, p, negative);
-                    grid.flags[fi] = SIG | NEW | ((p as u8) << PLANE_SHIFT);
-                } else if has_children {
-                    let zctx = (class * 3 + hv) * 2 + parent_sig;
-                    let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
-                    if side.stopped() {
-                        return ScanEnd::Stopped;
-                    }
-                    grid.flags[fi] = if root { f | ZT } else { f & !ZT };
+                let live = if len < 64 {
+                    (1u64 << len) - 1
                 } else {
-                    grid.flags[fi] = f & !ZT;
+                    u64::MAX
+                };
+                let covered = covered & live;
+                let significant = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                let mut todo = live & !covered & !significant;
+                // Significant coefficients pass their parent's zerotree on; new roots
+                // are added below.
+                let mut roots = covered;
+                while todo != 0 {
+                    let k = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let x = chunk + k;
+                    let fi = row_f + x;
+                    let i = row_i + x;
+                    let parent_sig = match parent_row {
+                        Some((start, pw, halve)) => {
+                            let px = if halve { x >> 1 } else { x };
+                            (px < pw
+                                && grid.sig_bits[(start + px) / 64] >> ((start + px) % 64) & 1 != 0)
+                                as usize
+                        }
+                        None => 0,
+                    };
+                    let (hv, diag) = grid.neighbourhood(fi);
+                    let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
+                    let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
+                    if side.stopped() {
+                        deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                        return ScanEnd::Stopped;
+                    }
+                    if is_significant {
+                        let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
+                        let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
+                        let sctx = (orientation * 3 + left) * 3 + up;
+                        let negative = side.sign(i, &mut contexts.sign[sctx]);
+                        if side.stopped() {
+                            deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                            return ScanEnd::Stopped;
+                        }
+                        side.commit_significant(i, b, p, negative);
+                        grid.flags[fi] = SIG | NEW | ((p as u8) << PLANE_SHIFT);
+                        let bit = row_bit + x;
+                        grid.sig_bits[bit / 64] |= 1 << (bit % 64);
+                    } else if has_children {
+                        let zctx = (class * 3 + hv) * 2 + parent_sig;
+                        let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
+                        if side.stopped() {
+                            deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                            return ScanEnd::Stopped;
+                        }
+                        roots |= (root as u64) << k;
+                    }
                 }
+                deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
             }
         }
     }
-    // Subordinate scan.
+    // Subordinate scan: the significant coefficients, in the same order.
     for (b, band) in layout.bands.iter().enumerate() {
         if n < band.shift {
             continue;
@@ -352,27 +443,31 @@ fn scan_pass<S: Side>(
             let gy = sub.y0 + y;
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
-            for x in 0..sub.width {
-                let fi = row_f + x;
-                let f = grid.flags[fi];
-                if f & SIG == 0 {
-                    continue;
+            let row_bit = grid.bit(sub.x0, gy);
+            for chunk in (0..sub.width).step_by(64) {
+                let len = (sub.width - chunk).min(64);
+                let mut todo = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                while todo != 0 {
+                    let x = chunk + todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let fi = row_f + x;
+                    let f = grid.flags[fi];
+                    if f & NEW != 0 {
+                        grid.flags[fi] = f & !NEW;
+                        continue;
+                    }
+                    let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize;
+                    let (hv, diag) = grid.neighbourhood(fi);
+                    let busy = (hv + diag > 1) as usize;
+                    let rctx = (first * 2 + busy) * 4 + band.class;
+                    let i = row_i + x;
+                    let bit = side.refinement(i, p, &mut contexts.refinement[rctx]);
+                    if side.stopped() {
+                        return ScanEnd::Stopped;
+                    }
+                    side.commit_refinement(i, b, p, bit);
+                    grid.flags[fi] = (f & !(0x1F << PLANE_SHIFT)) | ((p as u8) << PLANE_SHIFT);
                 }
-                if f & NEW != 0 {
-                    grid.flags[fi] = f & !NEW;
-                    continue;
-                }
-                let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize;
-                let (hv, diag) = grid.neighbourhood(fi);
-                let busy = (hv + diag > 1) as usize;
-                let rctx = (first * 2 + busy) * 4 + band.class;
-                let i = row_i + x;
-                let bit = side.refinement(i, p, &mut contexts.refinement[rctx]);
-                if side.stopped() {
-                    return ScanEnd::Stopped;
-                }
-                side.commit_refinement(i, b, p, bit);
-                grid.flags[fi] = (f & !(0x1F << PLANE_SHIFT)) | ((p as u8) << PLANE_SHIFT);
             }
         }
     }
