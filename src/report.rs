@@ -186,6 +186,8 @@ pub struct DemResult {
     pub rates: Vec<RateResult>,
     /// Error-bounded sizes.
     pub bounds: Vec<BoundResult>,
+    /// Lossless ideal code length (bits) with every context, each removed, and none.
+    pub contexts: Vec<(String, f64)>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -291,7 +293,14 @@ pub fn measure(
         });
     }
 
+    let contexts = wavemesh_codec::pipeline::context_ablation(&raster)
+        .map_err(|e| codec_err(e.to_string()))?
+        .into_iter()
+        .map(|(name, bits)| (name.to_string(), bits))
+        .collect();
+
     Ok(DemResult {
+        contexts,
         name: dataset.name.clone(),
         width: w,
         height: h,
@@ -470,6 +479,32 @@ pub fn markdown(results: &[DemResult], peers: &[PeerRow]) -> String {
                     .map_or("n/a".into(), |(v, _)| format!("{:.2}×", b.bpp / v)),
             ));
         }
+    }
+    out.push_str(
+        "\n### What each context buys (lossless payload, % more bits when it is removed)\n\n",
+    );
+    if let Some(first) = results.first() {
+        out.push_str("| DEM | bits/sample, all contexts |");
+        for (name, _) in first.contexts.iter().skip(1) {
+            out.push_str(&format!(" {name} |"));
+        }
+        out.push_str("\n|---|---:|");
+        for _ in first.contexts.iter().skip(1) {
+            out.push_str("---:|");
+        }
+        out.push('\n');
+    }
+    for r in results {
+        let all = r.contexts.first().map_or(0.0, |c| c.1);
+        out.push_str(&format!(
+            "| {} | {:.3} |",
+            r.name,
+            all / (r.width * r.height) as f64
+        ));
+        for (_, bits) in r.contexts.iter().skip(1) {
+            out.push_str(&format!(" {:+.1} % |", (bits / all - 1.0) * 100.0));
+        }
+        out.push('\n');
     }
     out.push_str(
         "\n### Speed and memory (lossless, one thread; OpenJPEG timed as whole processes)\n\n",

@@ -27,7 +27,7 @@
 //! decoder stops at the first decision its bytes cannot determine, leaving every
 //! coefficient with the bits it has (reconstructed mid-interval by [`Decoder::dequantise`]).
 
-use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitModel, BitSink};
+use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel, BitSink};
 use crate::wavelet::{Orientation, Subband};
 
 /// Flag bits kept per coefficient during a scan.
@@ -142,9 +142,45 @@ impl CoefficientLayout {
     }
 }
 
+/// Which context information the models are selected by (all of it in every stream; the
+/// others exist to measure what each piece buys, with [`count_bits`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContextChoice {
+    /// Subband class (LL, coarse, level 2, level 1) for significance, zerotree, refinement.
+    pub subband_class: bool,
+    /// Significance of the spatial neighbours (significance, zerotree, refinement).
+    pub neighbours: bool,
+    /// Significance of the parent (significance, zerotree).
+    pub parent: bool,
+    /// Signs of the left and upper neighbours (sign).
+    pub neighbour_signs: bool,
+    /// First refinement or not (refinement).
+    pub refinement_age: bool,
+}
+
+impl ContextChoice {
+    /// Every context in use: what streams are coded with.
+    pub const ALL: ContextChoice = ContextChoice {
+        subband_class: true,
+        neighbours: true,
+        parent: true,
+        neighbour_signs: true,
+        refinement_age: true,
+    };
+    /// One model per decision kind.
+    pub const NONE: ContextChoice = ContextChoice {
+        subband_class: false,
+        neighbours: false,
+        parent: false,
+        neighbour_signs: false,
+        refinement_age: false,
+    };
+}
+
 /// The adaptive models, grouped by decision.
 #[derive(Debug, Clone)]
 pub struct Contexts {
+    choice: ContextChoice,
     /// Significance: class (4) × horizontal+vertical significant neighbours (3)
     /// × any diagonal neighbour significant (2) × parent significant (2).
     significance: Vec<BitModel>,
@@ -159,7 +195,15 @@ pub struct Contexts {
 
 impl Default for Contexts {
     fn default() -> Self {
+        Contexts::with_choice(ContextChoice::ALL)
+    }
+}
+
+impl Contexts {
+    /// Fresh models selected by `choice`.
+    pub fn with_choice(choice: ContextChoice) -> Self {
         Contexts {
+            choice,
             significance: vec![BitModel::new(); 4 * 3 * 2 * 2],
             zerotree: vec![BitModel::new(); 4 * 3 * 2],
             sign: vec![BitModel::new(); 4 * 3 * 3],
@@ -348,7 +392,8 @@ fn scan_pass<S: Side>(
                 }
             });
         let has_children = band.has_children;
-        let class = band.class;
+        let choice = contexts.choice;
+        let class = band.class * choice.subband_class as usize;
         let orientation = band.orientation;
         for y in 0..sub.height {
             let gy = sub.y0 + y;
@@ -399,6 +444,11 @@ fn scan_pass<S: Side>(
                         None => 0,
                     };
                     let (hv, diag) = grid.neighbourhood(fi);
+                    let (hv, diag) = (
+                        hv * choice.neighbours as usize,
+                        diag * choice.neighbours as usize,
+                    );
+                    let parent_sig = parent_sig * choice.parent as usize;
                     let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
                     let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
                     if side.stopped() {
@@ -408,7 +458,8 @@ fn scan_pass<S: Side>(
                     if is_significant {
                         let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
                         let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
-                        let sctx = (orientation * 3 + left) * 3 + up;
+                        let signs = choice.neighbour_signs as usize;
+                        let sctx = (orientation * 3 + left * signs) * 3 + up * signs;
                         let negative = side.sign(i, &mut contexts.sign[sctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -456,10 +507,12 @@ fn scan_pass<S: Side>(
                         grid.flags[fi] = f & !NEW;
                         continue;
                     }
-                    let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize;
+                    let choice = contexts.choice;
+                    let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize
+                        * choice.refinement_age as usize;
                     let (hv, diag) = grid.neighbourhood(fi);
-                    let busy = (hv + diag > 1) as usize;
-                    let rctx = (first * 2 + busy) * 4 + band.class;
+                    let busy = (hv + diag > 1) as usize * choice.neighbours as usize;
+                    let rctx = (first * 2 + busy) * 4 + band.class * choice.subband_class as usize;
                     let i = row_i + x;
                     let bit = side.refinement(i, p, &mut contexts.refinement[rctx]);
                     if side.stopped() {
@@ -696,7 +749,7 @@ pub fn encode(
         })
         .sum();
     let top = top_plane(layout, coefficients);
-    let mut side = EncoderSide {
+    let side = EncoderSide {
         sink: ArithmeticEncoder::new(),
         coefficients,
         descendants: &descendants,
@@ -706,8 +759,29 @@ pub fn encode(
         over_budget: false,
         midpoint,
     };
+    let (side, passes, complete) = run_encoder(layout, side, top, ContextChoice::ALL);
+    let bytes = side.sink.finish();
+    let mut passes = passes;
+    for pass in &mut passes {
+        pass.end_byte = pass.end_byte.min(bytes.len() as u64);
+    }
+    EncodedPayload {
+        bytes,
+        top_plane: top,
+        passes,
+        complete,
+    }
+}
+
+/// Runs every pass of the encoder over `side`'s sink.
+fn run_encoder<'a, B: BitSink>(
+    layout: &CoefficientLayout,
+    mut side: EncoderSide<'a, B>,
+    top: Option<u32>,
+    choice: ContextChoice,
+) -> (EncoderSide<'a, B>, Vec<PassRecord>, bool) {
     let mut grid = FlagGrid::new(layout.width, layout.height);
-    let mut contexts = Contexts::default();
+    let mut contexts = Contexts::with_choice(choice);
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
@@ -725,16 +799,27 @@ pub fn encode(
             }
         }
     }
-    let bytes = side.sink.finish();
-    for pass in &mut passes {
-        pass.end_byte = pass.end_byte.min(bytes.len() as u64);
-    }
-    EncodedPayload {
-        bytes,
-        top_plane: top,
-        passes,
-        complete,
-    }
+    (side, passes, complete)
+}
+
+/// Ideal code length in bits of the complete stream for `coefficients` with the models
+/// selected by `choice` (no bytes are produced): what each context buys is the
+/// difference to [`ContextChoice::ALL`].
+pub fn count_bits(layout: &CoefficientLayout, coefficients: &[i32], choice: ContextChoice) -> f64 {
+    let descendants = descendant_masks(layout, coefficients);
+    let weights = vec![0.0; layout.bands.len()];
+    let side = EncoderSide {
+        sink: BitCounter::new(),
+        coefficients,
+        descendants: &descendants,
+        band_weights: &weights,
+        squared_error: 0.0,
+        budget: None,
+        over_budget: false,
+        midpoint: Midpoint::Integer,
+    };
+    let (side, _, _) = run_encoder(layout, side, top_plane(layout, coefficients), choice);
+    side.sink.bits()
 }
 
 /// Decoder side: fills signed magnitudes bit by bit.

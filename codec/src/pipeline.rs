@@ -2,7 +2,9 @@
 
 use crate::container::{Header, Mode, PAYLOAD_CUT};
 use crate::error::CodecError;
-use crate::ezw::{self, CoefficientLayout, Decoder, Midpoint, MAX_COEFFICIENT_PLANE};
+use crate::ezw::{
+    self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
+};
 use crate::mask::{decode_mask, encode_mask};
 use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
@@ -215,6 +217,70 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
         bytes,
         header,
     })
+}
+
+/// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
+/// (bits) with every context, with each one removed in turn, and with none.
+pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let levels = wavelet::default_levels(width, height);
+    let norms: Vec<f64> = wavelet::synthesis_norms(Wavelet::Int53, width, height, levels)
+        .into_iter()
+        .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
+        .collect();
+    let mask = raster.valid_mask();
+    let prepared = prepare_53(raster, &mask, Quality::Lossless, &norms)?;
+    let subbands = wavelet::subbands(width, height, levels);
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    let all = ContextChoice::ALL;
+    let choices = [
+        ("all contexts", all),
+        (
+            "without subband class",
+            ContextChoice {
+                subband_class: false,
+                ..all
+            },
+        ),
+        (
+            "without neighbours",
+            ContextChoice {
+                neighbours: false,
+                ..all
+            },
+        ),
+        (
+            "without parent",
+            ContextChoice {
+                parent: false,
+                ..all
+            },
+        ),
+        (
+            "without neighbour signs",
+            ContextChoice {
+                neighbour_signs: false,
+                ..all
+            },
+        ),
+        (
+            "without refinement age",
+            ContextChoice {
+                refinement_age: false,
+                ..all
+            },
+        ),
+        ("no contexts", ContextChoice::NONE),
+    ];
+    Ok(choices
+        .into_iter()
+        .map(|(name, choice)| {
+            (
+                name,
+                ezw::count_bits(&layout, &prepared.coefficients, choice),
+            )
+        })
+        .collect())
 }
 
 /// Coefficients and parameters ready for the EZW coder.
