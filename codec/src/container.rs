@@ -13,8 +13,6 @@ use crate::wavelet::Wavelet;
 pub const MAGIC: [u8; 8] = *b"\x89EZW\r\n\x1a\n";
 /// The container version this build writes and reads.
 pub const VERSION: u16 = 1;
-/// `payload_len` value meaning "the encoder stopped at a byte budget".
-pub const PAYLOAD_CUT: u64 = u64::MAX;
 
 /// How the stream was made, which says what its complete decode guarantees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,12 +87,18 @@ pub struct Header {
     pub top_plane: Option<u8>,
     /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
     pub bands: Vec<(u8, f64)>,
-    /// Bytes of the complete payload, or [`PAYLOAD_CUT`].
+    /// Bytes of the payload in the file.
     pub payload_len: u64,
+    /// The payload is a prefix of a longer embedded stream (the encoder stopped at a byte
+    /// budget or chose a cut): it is decoded as a truncated stream.
+    pub payload_truncated: bool,
     /// Bytes of the coded nodata mask (0: no mask, every sample valid).
     pub mask_len: u32,
-    /// Bytes of the coded float residuals (0: none).
+    /// Bytes of the residual section: exact float residuals (lossless), or max-error
+    /// corrections when `correction_step > 0` (0: no section).
     pub residual_len: u32,
+    /// Step of the max-error corrections (0: none).
+    pub correction_step: f64,
     /// One record per pass from the top plane down, for the passes the stream holds
     /// completely.
     pub passes: Vec<PassRecord>,
@@ -141,8 +145,10 @@ impl Header {
             }
         }
         out.extend_from_slice(&self.payload_len.to_le_bytes());
+        out.push(self.payload_truncated as u8);
         out.extend_from_slice(&self.mask_len.to_le_bytes());
         out.extend_from_slice(&self.residual_len.to_le_bytes());
+        out.extend_from_slice(&self.correction_step.to_le_bytes());
         out.push(self.passes.len() as u8);
         let mut previous_end = 0;
         for pass in &self.passes {
@@ -280,8 +286,17 @@ impl Header {
             bands.push((shift, scale));
         }
         let payload_len = r.u64()?;
+        let payload_truncated = match r.u8()? {
+            0 => false,
+            1 => true,
+            _ => return Err(CodecError::InvalidHeader("payload flag".into())),
+        };
         let mask_len = r.u32()?;
         let residual_len = r.u32()?;
+        let correction_step = r.f64()?;
+        if !(correction_step.is_finite() && correction_step >= 0.0) {
+            return Err(CodecError::InvalidHeader("correction step".into()));
+        }
         let pass_count = r.u8()? as usize;
         let top = top_plane.map_or(0, u32::from);
         if pass_count > top as usize + 1 || (top_plane.is_none() && pass_count > 0) {
@@ -345,8 +360,10 @@ impl Header {
                 top_plane,
                 bands,
                 payload_len,
+                payload_truncated,
                 mask_len,
                 residual_len,
+                correction_step,
                 passes,
                 georef,
             },
@@ -450,8 +467,10 @@ mod tests {
             top_plane: Some(17),
             bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
             payload_len: 12345,
+            payload_truncated: false,
             mask_len: 17,
             residual_len: 0,
+            correction_step: 0.0,
             passes: vec![
                 PassRecord {
                     plane: 17,

@@ -1,6 +1,6 @@
 //! Whole-file encode and decode: raster → `.ezw` bytes → raster.
 
-use crate::container::{Header, Mode, PAYLOAD_CUT};
+use crate::container::{Header, Mode};
 use crate::error::CodecError;
 use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
@@ -64,7 +64,175 @@ pub struct Encoded {
 }
 
 /// Encodes a raster into a `.ezw` file.
+///
+/// With [`Quality::MaxError`] and the 5/3 wavelet, two streams are made and the smaller
+/// kept: the near-lossless one (samples quantised on `2⌊E⌋+1`, coded exactly) and a 9/7
+/// stream cut where it is cheapest, followed by corrections for the samples its
+/// reconstruction leaves more than E away (see [`encode_with_corrections`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+    let near_lossless = encode_stream(raster, options)?;
+    match (options.wavelet, options.quality, options.budget_bytes) {
+        (Wavelet::Int53, Quality::MaxError(e), None)
+            if near_lossless.header.mode == Mode::MaxError =>
+        {
+            match encode_with_corrections(raster, options.levels, e, near_lossless.bytes.len())? {
+                Some(corrected) if corrected.bytes.len() < near_lossless.bytes.len() => {
+                    Ok(corrected)
+                }
+                _ => Ok(near_lossless),
+            }
+        }
+        _ => Ok(near_lossless),
+    }
+}
+
+/// Error-bounded coding by a cut 9/7 stream plus corrections: every valid sample whose
+/// reconstruction misses by more than `e` gets `k` steps of `2⌊e⌋+1` (integers) or just
+/// under `2e` (floats) added, `k` coded like float residuals. The cut is searched for the
+/// smallest total size, below `limit` bytes; `None` if nothing smaller was found.
+pub fn encode_with_corrections(
+    raster: &Raster,
+    levels: Option<u32>,
+    e: f64,
+    limit: usize,
+) -> Result<Option<Encoded>, CodecError> {
+    let options = EncodeOptions {
+        wavelet: Wavelet::Cdf97,
+        levels,
+        quality: Quality::Lossless,
+        budget_bytes: Some(limit as u64),
+    };
+    let Ok(stream) = encode_stream(raster, &options) else {
+        return Ok(None);
+    };
+    let step = if raster.sample_type().is_integer() {
+        2.0 * e.floor() + 1.0
+    } else {
+        2.0 * e * 0.999
+    };
+    let prefix = stream.header_len + stream.header.mask_len as usize;
+    let payload = &stream.bytes[prefix..];
+    let mut best: Option<Encoded> = None;
+    let mut tried: Vec<(usize, usize)> = Vec::new();
+    let mut evaluate = |cut: usize| -> Result<usize, CodecError> {
+        if let Some(&(_, size)) = tried.iter().find(|(c, _)| *c == cut) {
+            return Ok(size);
+        }
+        let size = match corrected_file(raster, &stream, &payload[..cut], e, step)? {
+            Some(file) => {
+                let size = file.bytes.len();
+                if best.as_ref().is_none_or(|b| size < b.bytes.len()) {
+                    best = Some(file);
+                }
+                size
+            }
+            None => usize::MAX,
+        };
+        tried.push((cut, size));
+        Ok(size)
+    };
+    // Coarse: cuts a factor √2 apart; then a golden-section search around the best.
+    // (The near-lossless stream bounds the useful range from above; a 9/7 prefix 32 times
+    // smaller leaves too many samples to correct.)
+    let mut cuts: Vec<usize> = (0..11)
+        .map(|k| (payload.len() as f64 * 0.5f64.powf(k as f64 / 2.0)) as usize)
+        .filter(|&c| c > 16)
+        .collect();
+    cuts.dedup();
+    let mut sizes = Vec::new();
+    for &cut in &cuts {
+        sizes.push(evaluate(cut)?);
+    }
+    if let Some((k, _)) = sizes.iter().enumerate().min_by_key(|(_, &s)| s) {
+        let (mut lo, mut hi) = (cuts[(k + 1).min(cuts.len() - 1)], cuts[k.saturating_sub(1)]);
+        for _ in 0..5 {
+            let a = lo + (hi - lo) / 3;
+            let b = hi - (hi - lo) / 3;
+            if evaluate(a)? <= evaluate(b)? {
+                hi = b;
+            } else {
+                lo = a;
+            }
+        }
+    }
+    Ok(best)
+}
+
+/// The file made of `stream`'s header and mask, `payload`, and the corrections that
+/// bring every valid sample within `e`; `None` if some sample cannot be corrected.
+fn corrected_file(
+    raster: &Raster,
+    stream: &Encoded,
+    payload: &[u8],
+    e: f64,
+    step: f64,
+) -> Result<Option<Encoded>, CodecError> {
+    let mask_bytes =
+        &stream.bytes[stream.header_len..stream.header_len + stream.header.mask_len as usize];
+    let mut header = stream.header.clone();
+    header.payload_len = payload.len() as u64;
+    header.payload_truncated = true;
+    header.passes.retain(|p| p.end_byte <= payload.len() as u64);
+    header.residual_len = 0;
+    header.correction_step = 0.0;
+    let mut file = header.to_bytes();
+    file.extend_from_slice(mask_bytes);
+    file.extend_from_slice(payload);
+    let decoded = decode(&file, &DecodeOptions::default())?;
+    let (lo, hi) = raster.sample_type().value_range();
+    let mut corrections = Vec::new();
+    for i in 0..raster.len() {
+        if !raster.is_valid(i) {
+            continue;
+        }
+        let original = raster.samples.get_f64(i);
+        let got = decoded.raster.samples.get_f64(i);
+        let mut k = 0.0;
+        if (original - got).abs() > e {
+            k = ((original - got) / step).round();
+            let corrected = apply_correction(raster.sample_type(), got, k, step, lo, hi);
+            if (original - corrected).abs() > e || k.abs() > i32::MAX as f64 {
+                return Ok(None);
+            }
+        }
+        corrections.push(k as i32);
+    }
+    let correction_bytes = encode_residuals(&corrections);
+    header.residual_len = correction_bytes.len() as u32;
+    header.correction_step = step;
+    header.mode = Mode::MaxError;
+    header.max_error = e;
+    let header_bytes = header.to_bytes();
+    let mut bytes = header_bytes.clone();
+    bytes.extend_from_slice(mask_bytes);
+    bytes.extend_from_slice(payload);
+    bytes.extend_from_slice(&correction_bytes);
+    Ok(Some(Encoded {
+        header_len: header_bytes.len(),
+        bytes,
+        header,
+    }))
+}
+
+/// A decoded sample moved by `k` correction steps, as the sample type stores it.
+fn apply_correction(
+    sample_type: SampleType,
+    value: f64,
+    k: f64,
+    step: f64,
+    lo: f64,
+    hi: f64,
+) -> f64 {
+    let moved = value + k * step;
+    if sample_type.is_integer() {
+        moved.round().clamp(lo, hi)
+    } else {
+        moved as f32 as f64
+    }
+}
+
+/// Encodes one stream as `options` say (no choice between methods).
+fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
     let (width, height) = (raster.width, raster.height);
     if width == 0 || height == 0 || raster.samples.len() != width * height {
         return Err(CodecError::Dimensions {
@@ -143,8 +311,10 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
             .map(|(&s, &c)| (s as u8, c))
             .collect(),
         payload_len: 0,
+        payload_truncated: false,
         mask_len: mask_bytes.len() as u32,
         residual_len: residual_bytes.len() as u32,
+        correction_step: 0.0,
         passes: Vec::new(),
         georef: raster.georef.clone(),
     };
@@ -179,7 +349,7 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
         // lists only the passes the kept payload holds, so its size depends on the cut:
         // iterate to the fixed point (it shrinks monotonically, in a few steps).
         let total = budget.expect("only a budget cuts a stream");
-        header.payload_len = PAYLOAD_CUT;
+        header.payload_truncated = true;
         header.residual_len = 0;
         header.mode = Mode::Lossy;
         header.max_error = f64::INFINITY;
@@ -201,6 +371,7 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
             keep = room;
         }
         payload_bytes.truncate(keep);
+        header.payload_len = keep as u64;
     }
     let header_bytes = header.to_bytes();
     let mut bytes = Vec::with_capacity(
@@ -564,6 +735,46 @@ fn to_samples<X: Copy>(
     samples
 }
 
+/// Adds `k · step` to every valid sample, `k` taken in order from `corrections`.
+fn apply_corrections(
+    samples: &mut Samples,
+    mask: Option<&[bool]>,
+    step: f64,
+    corrections: &mut impl Iterator<Item = i32>,
+) {
+    fn each<T: Copy>(
+        values: &mut [T],
+        mask: Option<&[bool]>,
+        corrections: &mut impl Iterator<Item = i32>,
+        mut apply: impl FnMut(T, f64) -> T,
+    ) {
+        for (i, v) in values.iter_mut().enumerate() {
+            if mask.is_none_or(|m| m[i]) {
+                let k = corrections.next().unwrap_or(0);
+                if k != 0 {
+                    *v = apply(*v, k as f64);
+                }
+            }
+        }
+    }
+    let int = |v: f64, k: f64, lo: f64, hi: f64| (v + k * step).round().clamp(lo, hi);
+    match samples {
+        Samples::U8(v) => each(v, mask, corrections, |x, k| {
+            int(x as f64, k, 0.0, 255.0) as u8
+        }),
+        Samples::U16(v) => each(v, mask, corrections, |x, k| {
+            int(x as f64, k, 0.0, 65535.0) as u16
+        }),
+        Samples::I16(v) => each(v, mask, corrections, |x, k| {
+            int(x as f64, k, -32768.0, 32767.0) as i16
+        }),
+        Samples::I32(v) => each(v, mask, corrections, |x, k| {
+            int(x as f64, k, i32::MIN as f64, i32::MAX as f64) as i32
+        }),
+        Samples::F32(v) => each(v, mask, corrections, |x, k| (x as f64 + k * step) as f32),
+    }
+}
+
 /// Working memory a decode needs, in bytes (used for the limit check).
 pub fn decode_memory(header: &Header) -> u64 {
     let n = header.sample_count();
@@ -608,15 +819,12 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
         None
     };
     let available = data.len().saturating_sub(mask_end);
-    let (payload, payload_complete) = if header.payload_len == PAYLOAD_CUT {
-        (&data[mask_end.min(data.len())..], false)
-    } else {
-        let len = (header.payload_len as usize).min(available);
-        (
-            &data[mask_end..mask_end + len],
-            len as u64 == header.payload_len,
-        )
-    };
+    let payload_len = (header.payload_len.min(available as u64)) as usize;
+    let payload = &data[mask_end..mask_end + payload_len];
+    // All of the payload the encoder wrote is here.
+    let payload_present = payload_len as u64 == header.payload_len;
+    // ... and it is a whole stream, not a prefix: its padding is genuine.
+    let payload_complete = payload_present && !header.payload_truncated;
     let levels = header.levels as u32;
     let subbands = wavelet::subbands(width, height, levels);
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
@@ -669,24 +877,38 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
             )
         }
     };
-    // Lossless floats off a grid: apply the exact residuals once everything else is there.
+    // The residual section: exact float residuals once the whole stream is decoded, or
+    // max-error corrections once the whole (cut) payload is.
     let residual_start = mask_end + payload.len();
-    let mut residuals_complete = header.residual_len == 0;
-    if let Samples::F32(floats) = &mut samples {
-        let residual_bytes =
-            data.get(residual_start..residual_start + header.residual_len as usize);
-        if let Some(bytes) = residual_bytes.filter(|_| ezw_complete && header.residual_len > 0) {
-            let valid_count = mask_ref.map_or(n, |m| m.iter().filter(|&&v| v).count());
-            let mut residuals = decode_residuals(bytes, valid_count).into_iter();
-            for (i, value) in floats.iter_mut().enumerate() {
-                if mask_ref.is_none_or(|m| m[i]) {
-                    let r = residuals.next().unwrap_or(0);
-                    *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
-                }
-            }
-            residuals_complete = true;
+    let residual_bytes = data.get(residual_start..residual_start + header.residual_len as usize);
+    let valid_count = || mask_ref.map_or(n, |m| m.iter().filter(|&&v| v).count());
+    let residuals_complete = match residual_bytes {
+        _ if header.residual_len == 0 => true,
+        Some(bytes) if header.correction_step > 0.0 && payload_present => {
+            let mut corrections = decode_residuals(bytes, valid_count()).into_iter();
+            apply_corrections(
+                &mut samples,
+                mask_ref,
+                header.correction_step,
+                &mut corrections,
+            );
+            true
         }
-    }
+        Some(bytes) if ezw_complete => match &mut samples {
+            Samples::F32(floats) => {
+                let mut residuals = decode_residuals(bytes, valid_count()).into_iter();
+                for (i, value) in floats.iter_mut().enumerate() {
+                    if mask_ref.is_none_or(|m| m[i]) {
+                        let r = residuals.next().unwrap_or(0);
+                        *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
+                    }
+                }
+                true
+            }
+            _ => false,
+        },
+        _ => false,
+    };
     let mut raster = Raster::new(width, height, samples)?;
     raster.nodata = header.nodata;
     raster.georef = header.georef.clone();
@@ -700,7 +922,9 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     Ok(Decoded {
         raster,
         passes_decoded,
-        complete: ezw_complete && residuals_complete,
+        complete: payload_present
+            && (ezw_complete || header.payload_truncated)
+            && residuals_complete,
         bytes_used,
         header,
     })

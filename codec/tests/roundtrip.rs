@@ -247,3 +247,31 @@ fn absurd_dimensions_are_refused_before_allocating() {
     let err = decode(&bytes, &DecodeOptions::default()).unwrap_err();
     assert!(err.to_string().contains("limit"), "{err}");
 }
+
+#[test]
+fn max_error_by_corrections_holds_and_its_prefixes_decode() {
+    // Smooth, wide-range terrain: a cut 9/7 stream plus corrections beats quantising.
+    for t in [SampleType::U16, SampleType::F32] {
+        let raster = terrain(96, 80, t, 17, 20000.0);
+        let e = 40.0;
+        let encoded = encode(&raster, &EncodeOptions::new(Quality::MaxError(e), None)).unwrap();
+        assert_eq!(
+            encoded.header.wavelet,
+            Wavelet::Cdf97,
+            "{t:?}: corrections not chosen"
+        );
+        assert!(encoded.header.correction_step > 0.0);
+        let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+        assert!(decoded.complete);
+        assert!(max_abs_error(&raster, &decoded.raster) <= e);
+        // Without the corrections (or with part of the payload) it still decodes.
+        for cut in [
+            encoded.bytes.len() - 1,
+            encoded.bytes.len() / 2,
+            encoded.header_len + 3,
+        ] {
+            let partial = decode(&encoded.bytes[..cut], &DecodeOptions::default()).unwrap();
+            assert!(!partial.complete);
+        }
+    }
+}

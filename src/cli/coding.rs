@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use wavemesh::metrics::{self, Distortion};
-use wavemesh_codec::container::PAYLOAD_CUT;
 use wavemesh_codec::{
     decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header,
     Quality, Raster,
@@ -25,7 +24,8 @@ pub struct EncodeArgs {
     /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53.
     #[arg(long, conflicts_with_all = ["max_error", "precision"])]
     bpp: Option<f64>,
-    /// Keep every valid sample within E data units of the original (5/3).
+    /// Keep every valid sample within E data units of the original (the smaller of a
+    /// near-lossless 5/3 stream and a cut 9/7 stream with corrections).
     #[arg(long, value_name = "E", conflicts_with = "precision")]
     max_error: Option<f64>,
     /// Float rasters: quantise to STEP (error ≤ STEP/2) instead of coding exactly.
@@ -178,12 +178,8 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         header_bytes: encoded.header_len as u64,
         mask_bytes: header.mask_len as u64,
         bpp: metrics::bits_per_sample(encoded.bytes.len() as u64, raster.width, raster.height),
-        passes: header
-            .passes
-            .iter()
-            .filter(|p| p.end_byte != PAYLOAD_CUT)
-            .count(),
-        complete: header.payload_len != PAYLOAD_CUT,
+        passes: header.passes.len(),
+        complete: !header.payload_truncated,
         encode_seconds: seconds,
         encode_msamples_per_second: samples / seconds / 1e6,
         encode_peak_heap_bytes: peak as u64,
@@ -346,8 +342,10 @@ struct InfoReport<'a> {
     valid_max: f64,
     header_bytes: u64,
     mask_bytes: u32,
-    payload_bytes: Option<u64>,
+    payload_bytes: u64,
+    payload_cut_by_encoder: bool,
     residual_bytes: u32,
+    correction_step: Option<f64>,
     truncated: bool,
     georeferenced: bool,
     geotransform: Option<[f64; 6]>,
@@ -374,7 +372,6 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
     let passes = header
         .passes
         .iter()
-        .filter(|p| p.end_byte != PAYLOAD_CUT)
         .map(|p| {
             let rmse = (p.squared_error / valid.max(1.0)).sqrt();
             PassReport {
@@ -386,12 +383,7 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
             }
         })
         .collect::<Vec<_>>();
-    let expected = payload_start
-        + if header.payload_len == PAYLOAD_CUT {
-            0
-        } else {
-            header.payload_len + header.residual_len as u64
-        };
+    let expected = payload_start + header.payload_len + header.residual_len as u64;
     let report = InfoReport {
         schema_version: SCHEMA_VERSION,
         command: "info",
@@ -412,9 +404,11 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         valid_max: header.valid_range.1,
         header_bytes: header_len as u64,
         mask_bytes: header.mask_len,
-        payload_bytes: (header.payload_len != PAYLOAD_CUT).then_some(header.payload_len),
+        payload_bytes: header.payload_len,
+        payload_cut_by_encoder: header.payload_truncated,
         residual_bytes: header.residual_len,
-        truncated: header.payload_len != PAYLOAD_CUT && (data.len() as u64) < expected,
+        correction_step: (header.correction_step > 0.0).then_some(header.correction_step),
+        truncated: (data.len() as u64) < expected,
         georeferenced: header.georef.is_some(),
         geotransform: header.georef.as_ref().map(|g| g.geotransform),
         passes,
@@ -450,12 +444,20 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         report.nodata.as_deref().unwrap_or("none")
     );
     println!(
-        "  header {} B, mask {} B, payload {}, residuals {} B{}{}",
+        "  header {} B, mask {} B, payload {} B{}, {} {} B{}{}",
         report.header_bytes,
         report.mask_bytes,
-        report
-            .payload_bytes
-            .map_or("cut at a byte budget".to_string(), |b| format!("{b} B")),
+        report.payload_bytes,
+        if report.payload_cut_by_encoder {
+            " (a cut stream)"
+        } else {
+            ""
+        },
+        if report.correction_step.is_some() {
+            "corrections"
+        } else {
+            "residuals"
+        },
         report.residual_bytes,
         if report.truncated { ", TRUNCATED" } else { "" },
         if report.georeferenced {
