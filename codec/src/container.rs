@@ -100,7 +100,8 @@ pub struct Header {
     /// Step of the max-error corrections (0: none).
     pub correction_step: f64,
     /// One record per pass from the top plane down, for the passes the stream holds
-    /// completely.
+    /// completely. Stored in a section at the end of the file (the ladder), so a prefix
+    /// spends no bytes on it; empty when the file was truncated before it.
     pub passes: Vec<PassRecord>,
     /// Georeferencing carried through.
     pub georef: Option<Georef>,
@@ -141,7 +142,7 @@ impl Header {
         for &(shift, scale) in &self.bands {
             match self.wavelet {
                 Wavelet::Int53 => out.push(shift),
-                Wavelet::Cdf97 => out.extend_from_slice(&(scale as f32).to_le_bytes()),
+                Wavelet::Cdf97 => out.extend_from_slice(&scale_to_u16(scale).to_le_bytes()),
             }
         }
         out.extend_from_slice(&self.payload_len.to_le_bytes());
@@ -149,13 +150,7 @@ impl Header {
         out.extend_from_slice(&self.mask_len.to_le_bytes());
         out.extend_from_slice(&self.residual_len.to_le_bytes());
         out.extend_from_slice(&self.correction_step.to_le_bytes());
-        out.push(self.passes.len() as u8);
-        let mut previous_end = 0;
-        for pass in &self.passes {
-            write_varint(&mut out, pass.end_byte - previous_end);
-            previous_end = pass.end_byte;
-            out.extend_from_slice(&(pass.squared_error as f32).to_le_bytes());
-        }
+        out.extend_from_slice(&(self.ladder_bytes().len() as u32).to_le_bytes());
         match &self.georef {
             None => out.push(0),
             Some(g) => {
@@ -278,7 +273,7 @@ impl Header {
         for _ in 0..band_count {
             let (shift, scale) = match wavelet {
                 Wavelet::Int53 => (r.u8()?, 1.0),
-                Wavelet::Cdf97 => (0, f32::from_le_bytes(r.array()?) as f64),
+                Wavelet::Cdf97 => (0, scale_from_u16(r.u16()?)),
             };
             if shift as u32 > MAX_PLANE || !(scale.is_finite() && scale > 0.0) {
                 return Err(CodecError::InvalidHeader("subband shift or scale".into()));
@@ -297,26 +292,7 @@ impl Header {
         if !(correction_step.is_finite() && correction_step >= 0.0) {
             return Err(CodecError::InvalidHeader("correction step".into()));
         }
-        let pass_count = r.u8()? as usize;
-        let top = top_plane.map_or(0, u32::from);
-        if pass_count > top as usize + 1 || (top_plane.is_none() && pass_count > 0) {
-            return Err(CodecError::InvalidHeader(format!(
-                "{pass_count} passes for top plane {top}"
-            )));
-        }
-        let mut passes = Vec::with_capacity(pass_count);
-        let mut end_byte = 0u64;
-        for k in 0..pass_count {
-            end_byte = end_byte
-                .checked_add(r.varint()?)
-                .ok_or_else(|| CodecError::InvalidHeader("pass byte counts overflow".into()))?;
-            let squared_error = f32::from_le_bytes(r.array()?) as f64;
-            passes.push(PassRecord {
-                plane: top - k as u32,
-                end_byte,
-                squared_error,
-            });
-        }
+        let ladder_len = r.u32()? as usize;
         let georef = match r.u8()? {
             0 => None,
             1 => {
@@ -344,32 +320,76 @@ impl Header {
                 "trailing bytes in the header".into(),
             ));
         }
-        Ok((
-            Header {
-                width,
-                height,
-                sample_type,
-                wavelet,
-                levels,
-                mode,
-                mapping: ValueMapping { offset, step },
-                max_error,
-                coefficient_step,
-                nodata,
-                valid_range,
-                top_plane,
-                bands,
-                payload_len,
-                payload_truncated,
-                mask_len,
-                residual_len,
-                correction_step,
-                passes,
-                georef,
-            },
-            header_len,
-        ))
+        let mut header = Header {
+            width,
+            height,
+            sample_type,
+            wavelet,
+            levels,
+            mode,
+            mapping: ValueMapping { offset, step },
+            max_error,
+            coefficient_step,
+            nodata,
+            valid_range,
+            top_plane,
+            bands,
+            payload_len,
+            payload_truncated,
+            mask_len,
+            residual_len,
+            correction_step,
+            passes: Vec::new(),
+            georef,
+        };
+        // The ladder trails the file; a truncated file simply has none to show.
+        let ladder_start = (header_len as u64)
+            .saturating_add(header.mask_len as u64)
+            .saturating_add(header.payload_len)
+            .saturating_add(header.residual_len as u64);
+        if let Some(bytes) = usize::try_from(ladder_start)
+            .ok()
+            .and_then(|start| data.get(start..start.checked_add(ladder_len)?))
+        {
+            header.passes = parse_ladder(bytes, header.top_plane).unwrap_or_default();
+        }
+        Ok((header, header_len))
     }
+
+    /// The rate–distortion ladder section that trails the file.
+    pub fn ladder_bytes(&self) -> Vec<u8> {
+        let mut out = vec![self.passes.len() as u8];
+        let mut previous_end = 0;
+        for pass in &self.passes {
+            write_varint(&mut out, pass.end_byte - previous_end);
+            previous_end = pass.end_byte;
+            out.extend_from_slice(&error_to_u16(pass.squared_error).to_le_bytes());
+        }
+        out
+    }
+}
+
+/// A 9/7 subband scale (a synthesis norm, about 0.5–3) in 1/8192 units.
+pub fn scale_to_u16(scale: f64) -> u16 {
+    (scale * 8192.0).round().clamp(1.0, u16::MAX as f64) as u16
+}
+
+/// Inverse of [`scale_to_u16`].
+pub fn scale_from_u16(code: u16) -> f64 {
+    code as f64 / 8192.0
+}
+
+/// A squared error on a logarithmic scale: 1/256 of a bit (≈ 0.012 dB) per step,
+/// `log2(1 + e) · 256`.
+pub fn error_to_u16(squared_error: f64) -> u16 {
+    ((1.0 + squared_error.max(0.0)).log2() * 256.0)
+        .round()
+        .min(u16::MAX as f64) as u16
+}
+
+/// Inverse of [`error_to_u16`] (to its precision).
+pub fn error_from_u16(code: u16) -> f64 {
+    (code as f64 / 256.0).exp2() - 1.0
 }
 
 /// Appends `value` as LEB128 (7 bits a byte, low first, high bit = more follows).
@@ -379,6 +399,31 @@ fn write_varint(out: &mut Vec<u8>, mut value: u64) {
         value >>= 7;
     }
     out.push(value as u8);
+}
+
+/// Parses the ladder section; `None` if it is malformed (it carries no checksum).
+fn parse_ladder(bytes: &[u8], top_plane: Option<u8>) -> Option<Vec<PassRecord>> {
+    let mut r = Reader {
+        data: bytes,
+        pos: 0,
+    };
+    let count = r.u8().ok()? as usize;
+    let top = top_plane.map_or(0, u32::from);
+    if count > top as usize + 1 || (top_plane.is_none() && count > 0) {
+        return None;
+    }
+    let mut passes = Vec::with_capacity(count);
+    let mut end_byte = 0u64;
+    for k in 0..count {
+        end_byte = end_byte.checked_add(r.varint().ok()?)?;
+        let squared_error = error_from_u16(r.u16().ok()?);
+        passes.push(PassRecord {
+            plane: top - k as u32,
+            end_byte,
+            squared_error,
+        });
+    }
+    (r.pos == bytes.len()).then_some(passes)
 }
 
 /// Largest header this build writes (georeferencing included) — a bigger claimed length
@@ -475,12 +520,12 @@ mod tests {
                 PassRecord {
                     plane: 17,
                     end_byte: 3,
-                    squared_error: 1e9,
+                    squared_error: error_from_u16(error_to_u16(1e9)),
                 },
                 PassRecord {
                     plane: 16,
                     end_byte: 300,
-                    squared_error: 0.25,
+                    squared_error: error_from_u16(error_to_u16(0.25)),
                 },
             ],
             georef: Some(Georef {
@@ -494,10 +539,17 @@ mod tests {
 
     #[test]
     fn header_round_trips() {
-        let h = sample_header();
-        let bytes = h.to_bytes();
+        let h = Header {
+            payload_len: 3,
+            mask_len: 0,
+            ..sample_header()
+        };
+        let mut bytes = h.to_bytes();
+        let len_header = bytes.len();
+        bytes.extend_from_slice(&[1, 2, 3]); // the payload
+        bytes.extend_from_slice(&h.ladder_bytes());
         let (parsed, len) = Header::parse(&bytes).unwrap();
-        assert_eq!(len, bytes.len());
+        assert_eq!(len, len_header);
         // NaN != NaN: compare the nodata bits separately.
         assert_eq!(parsed.nodata.map(f64::to_bits), h.nodata.map(f64::to_bits));
         assert_eq!(

@@ -207,6 +207,7 @@ fn corrected_file(
     bytes.extend_from_slice(mask_bytes);
     bytes.extend_from_slice(payload);
     bytes.extend_from_slice(&correction_bytes);
+    bytes.extend_from_slice(&header.ladder_bytes());
     Ok(Some(Encoded {
         header_len: header_bytes.len(),
         bytes,
@@ -336,18 +337,24 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
         budget.map(|total| total - fixed),
     );
     let mut payload_bytes = payload.bytes;
-    let fits = |header: &Header, payload_len: usize| {
-        budget.is_none_or(|total| {
-            header.to_bytes().len() + mask_bytes.len() + payload_len + residual_bytes.len() <= total
-        })
+    // File: header | mask | payload | residuals | ladder.
+    let file_len = |header: &Header, payload_len: usize, residual_len: usize| {
+        header.to_bytes().len()
+            + mask_bytes.len()
+            + payload_len
+            + residual_len
+            + header.ladder_bytes().len()
     };
     header.passes = payload.passes.clone();
     header.payload_len = payload_bytes.len() as u64;
-    let cut = !payload.complete || !fits(&header, payload_bytes.len());
+    let cut = !payload.complete
+        || budget.is_some_and(|total| {
+            file_len(&header, payload_bytes.len(), residual_bytes.len()) > total
+        });
     if cut {
-        // Cut the payload so header + mask + payload is exactly the budget. The header
-        // lists only the passes the kept payload holds, so its size depends on the cut:
-        // iterate to the fixed point (it shrinks monotonically, in a few steps).
+        // Cut the payload so the whole file is exactly the budget. The ladder lists only
+        // the passes the kept payload holds, so its size depends on the cut: iterate to
+        // the fixed point (it shrinks monotonically, in a few steps).
         let total = budget.expect("only a budget cuts a stream");
         header.payload_truncated = true;
         header.residual_len = 0;
@@ -361,7 +368,8 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
                 .copied()
                 .filter(|p| p.end_byte <= keep as u64)
                 .collect();
-            let room = total - header.to_bytes().len() - mask_bytes.len();
+            header.payload_len = keep as u64;
+            let room = (total + keep).saturating_sub(file_len(&header, keep, 0));
             if room >= keep {
                 // Dropping a pass record may leave a few bytes of room: fill them (a pass
                 // they complete simply goes unlisted).
@@ -374,15 +382,15 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
         header.payload_len = keep as u64;
     }
     let header_bytes = header.to_bytes();
-    let mut bytes = Vec::with_capacity(
-        header_bytes.len() + mask_bytes.len() + payload_bytes.len() + residual_bytes.len(),
-    );
+    let mut bytes =
+        Vec::with_capacity(file_len(&header, payload_bytes.len(), residual_bytes.len()));
     bytes.extend_from_slice(&header_bytes);
     bytes.extend_from_slice(&mask_bytes);
     bytes.extend_from_slice(&payload_bytes);
     if !cut {
         bytes.extend_from_slice(&residual_bytes);
     }
+    bytes.extend_from_slice(&header.ladder_bytes());
     Ok(Encoded {
         header_len: header_bytes.len(),
         bytes,
@@ -571,8 +579,11 @@ fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
     // everywhere, then quantise finely enough that the cut, not the quantiser, limits
     // the quality: the largest scaled coefficient gets 30 bits.
     let subbands = wavelet::subbands(width, height, levels);
-    // The header stores the scales as f32: quantise with exactly those values.
-    let norms: Vec<f64> = norms.iter().map(|&n| n as f32 as f64).collect();
+    // The header stores the scales in 1/8192 units: quantise with exactly those values.
+    let norms: Vec<f64> = norms
+        .iter()
+        .map(|&n| crate::container::scale_from_u16(crate::container::scale_to_u16(n)))
+        .collect();
     let mut largest = 0f64;
     for (sub, &norm) in subbands.iter().zip(&norms) {
         for y in 0..sub.height {

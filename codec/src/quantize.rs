@@ -278,6 +278,7 @@ pub fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::raster::Samples;
 
     #[test]
     fn integer_max_error_bound_holds() {

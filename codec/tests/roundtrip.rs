@@ -265,9 +265,14 @@ fn max_error_by_corrections_holds_and_its_prefixes_decode() {
         assert!(decoded.complete);
         assert!(max_abs_error(&raster, &decoded.raster) <= e);
         // Without the corrections (or with part of the payload) it still decodes.
+        let h = &encoded.header;
+        let corrections_end = encoded.header_len
+            + h.mask_len as usize
+            + h.payload_len as usize
+            + h.residual_len as usize;
         for cut in [
-            encoded.bytes.len() - 1,
-            encoded.bytes.len() / 2,
+            corrections_end - 1,
+            corrections_end / 2,
             encoded.header_len + 3,
         ] {
             let partial = decode(&encoded.bytes[..cut], &DecodeOptions::default()).unwrap();

@@ -342,6 +342,7 @@ struct InfoReport<'a> {
     valid_max: f64,
     header_bytes: u64,
     mask_bytes: u32,
+    payload_start: u64,
     payload_bytes: u64,
     payload_cut_by_encoder: bool,
     residual_bytes: u32,
@@ -408,7 +409,9 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         payload_cut_by_encoder: header.payload_truncated,
         residual_bytes: header.residual_len,
         correction_step: (header.correction_step > 0.0).then_some(header.correction_step),
-        truncated: (data.len() as u64) < expected,
+        truncated: (data.len() as u64) < expected
+            || (header.passes.is_empty() && header.top_plane.is_some()),
+        payload_start,
         georeferenced: header.georef.is_some(),
         geotransform: header.georef.as_ref().map(|g| g.geotransform),
         passes,
