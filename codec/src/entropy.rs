@@ -18,6 +18,8 @@ const PROB_BITS: u32 = 16;
 const PROB_ONE: u32 = 1 << PROB_BITS;
 /// Renormalise when the range drops below 2^24.
 const TOP: u32 = 1 << 24;
+/// Smallest probability a model gives either bit, in 1/65536 units.
+const PROB_FLOOR: u32 = 64;
 /// Adaptation rates (right shifts) of the fast and slow estimates.
 const FAST_RATE: u32 = 4;
 const SLOW_RATE: u32 = 7;
@@ -27,6 +29,8 @@ const SLOW_RATE: u32 = 7;
 pub struct BitModel {
     fast: u16,
     slow: u16,
+    /// Bits seen so far, saturating: young models adapt faster.
+    count: u16,
 }
 
 impl Default for BitModel {
@@ -41,14 +45,15 @@ impl BitModel {
         BitModel {
             fast: 1 << 15,
             slow: 1 << 15,
+            count: 0,
         }
     }
 
-    /// Probability of a 0 bit, in 1/65536 units, clamped to `[32, 65504]`.
+    /// Probability of a 0 bit, in 1/65536 units; always within
+    /// `[PROB_FLOOR, 65536 − PROB_FLOOR]` because the estimates never leave that range.
     #[inline]
     pub fn p0(&self) -> u32 {
-        let p = (self.fast as u32 + self.slow as u32) >> 1;
-        p.clamp(32, PROB_ONE - 32)
+        (self.fast as u32 + self.slow as u32) >> 1
     }
 
     /// Updates the model after coding `bit`.
@@ -56,11 +61,17 @@ impl BitModel {
     pub fn update(&mut self, bit: bool) {
         // Move both estimates toward 0 (after a 1) or 65535 (after a 0) without a branch:
         // `p += (target − p) >> rate` with an arithmetic shift.
-        let target = (!bit as i32) * (PROB_ONE as i32 - 1);
+        // Targets stop `PROB_FLOOR` short of certainty, and the flooring shift never
+        // overshoots a target, so no clamp is needed.
+        let target = PROB_FLOOR as i32 + (!bit as i32) * (PROB_ONE as i32 - 2 * PROB_FLOOR as i32);
         let fast = self.fast as i32;
         let slow = self.slow as i32;
-        self.fast = (fast + ((target - fast) >> FAST_RATE)) as u16;
-        self.slow = (slow + ((target - slow) >> SLOW_RATE)) as u16;
+        // The slow estimate starts as a running average (rate 1, 2, 3, ... after the first
+        // bits) and settles at SLOW_RATE; the fast one likewise up to FAST_RATE.
+        let age = self.count as u32 + 1;
+        self.fast = (fast + ((target - fast) >> FAST_RATE.min(age))) as u16;
+        self.slow = (slow + ((target - slow) >> SLOW_RATE.min(age))) as u16;
+        self.count = (self.count + 1).min(SLOW_RATE as u16);
     }
 }
 
