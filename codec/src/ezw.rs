@@ -154,7 +154,7 @@ pub struct ContextChoice {
     pub parent: bool,
     /// Signs of the left and upper neighbours (sign).
     pub neighbour_signs: bool,
-    /// First refinement or not (refinement).
+    /// How many planes ago the coefficient became significant (refinement).
     pub refinement_age: bool,
 }
 
@@ -188,8 +188,8 @@ pub struct Contexts {
     zerotree: Vec<BitModel>,
     /// Sign: orientation (4) × left neighbour (3: none, +, −) × upper neighbour (3).
     sign: Vec<BitModel>,
-    /// Refinement: first refinement of the coefficient (2) × any neighbour significant (2)
-    /// × class (4).
+    /// Refinement: age of the coefficient's significance (2: first refinement, second;
+    /// older ones are coded raw) × busy neighbourhood (2) × class (4).
     refinement: Vec<BitModel>,
 }
 
@@ -222,6 +222,8 @@ trait Side {
     fn zerotree_root(&mut self, i: usize, n: u32, model: &mut BitModel) -> bool;
     /// Bit `p` of the magnitude of coefficient `i`.
     fn refinement(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool;
+    /// Bit `p` of the magnitude of coefficient `i`, coded without a model (p = 1/2).
+    fn raw_refinement(&mut self, i: usize, p: u32) -> bool;
     /// Whether the last decision is not to be trusted (decoder) or the budget is spent
     /// (encoder): the scan stops without committing it.
     fn stopped(&self) -> bool;
@@ -231,6 +233,9 @@ trait Side {
     fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool);
     /// Sign of a coefficient already significant.
     fn is_negative(&self, i: usize) -> bool;
+    /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
+    /// plane `p` is refined).
+    fn known_above(&self, i: usize, p: u32) -> u32;
 }
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
@@ -508,13 +513,24 @@ fn scan_pass<S: Side>(
                         continue;
                     }
                     let choice = contexts.choice;
-                    let first = ((f >> PLANE_SHIFT) as u32 == p + 1) as usize
-                        * choice.refinement_age as usize;
+                    let i = row_i + x;
+                    // Age: 0 = first refinement (significant since the previous pass),
+                    // 1 = second, 2 = older.
+                    let age = match side.known_above(i, p) {
+                        1 => 0,
+                        2 | 3 => 1,
+                        _ => 2,
+                    } * choice.refinement_age as usize;
                     let (hv, diag) = grid.neighbourhood(fi);
                     let busy = (hv + diag > 1) as usize * choice.neighbours as usize;
-                    let rctx = (first * 2 + busy) * 4 + band.class * choice.subband_class as usize;
-                    let i = row_i + x;
-                    let bit = side.refinement(i, p, &mut contexts.refinement[rctx]);
+                    let rctx =
+                        ((age & 1) * 2 + busy) * 4 + band.class * choice.subband_class as usize;
+                    // Bits of magnitudes known to 3+ planes are all but random: raw.
+                    let bit = if age == 2 {
+                        side.raw_refinement(i, p)
+                    } else {
+                        side.refinement(i, p, &mut contexts.refinement[rctx])
+                    };
                     if side.stopped() {
                         return ScanEnd::Stopped;
                     }
@@ -621,6 +637,13 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         bit
     }
     #[inline]
+    fn raw_refinement(&mut self, i: usize, p: u32) -> bool {
+        let bit = (self.coefficients[i].unsigned_abs() >> p) & 1 != 0;
+        self.sink.encode_raw(bit);
+        self.check_budget();
+        bit
+    }
+    #[inline]
     fn stopped(&self) -> bool {
         self.over_budget
     }
@@ -644,6 +667,10 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
         self.coefficients[i] < 0
+    }
+    #[inline]
+    fn known_above(&self, i: usize, p: u32) -> u32 {
+        self.coefficients[i].unsigned_abs() >> (p + 1)
     }
 }
 
@@ -846,6 +873,10 @@ impl Side for DecoderSide<'_> {
         self.source.decode(model)
     }
     #[inline]
+    fn raw_refinement(&mut self, _i: usize, _p: u32) -> bool {
+        self.source.decode_raw()
+    }
+    #[inline]
     fn stopped(&self) -> bool {
         self.source.exhausted()
     }
@@ -864,6 +895,10 @@ impl Side for DecoderSide<'_> {
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
         self.values[i] < 0
+    }
+    #[inline]
+    fn known_above(&self, i: usize, p: u32) -> u32 {
+        self.values[i].unsigned_abs() >> (p + 1)
     }
 }
 
