@@ -182,6 +182,10 @@ pub struct DemResult {
     pub decode_msps: f64,
     /// Decode heap peak divided by the decoded raster's size.
     pub decode_peak_ratio: f64,
+    /// 9/7 at 1 bpp: encode throughput, Msamples/s (median of runs).
+    pub lossy_encode_msps: f64,
+    /// 9/7 at 1 bpp: decode throughput, Msamples/s (median of runs).
+    pub lossy_decode_msps: f64,
     /// Prefix PSNRs.
     pub rates: Vec<RateResult>,
     /// Error-bounded sizes.
@@ -238,6 +242,20 @@ pub fn measure(
         lossless = Some(encoded);
     }
     let lossless = lossless.expect("at least one run");
+
+    // 9/7 at 1 bpp, timed (OpenJPEG's -r 16 runs are the comparison).
+    let mut at_one = EncodeOptions::new(Quality::Lossless, Some((samples / 8.0) as u64));
+    at_one.wavelet = Wavelet::Cdf97;
+    let mut lossy_encode_times = Vec::new();
+    let mut lossy_decode_times = Vec::new();
+    for _ in 0..runs.max(1) {
+        let start = Instant::now();
+        let encoded = encode(&raster, &at_one).map_err(|e| codec_err(e.to_string()))?;
+        lossy_encode_times.push(start.elapsed().as_secs_f64());
+        let start = Instant::now();
+        decode(&encoded.bytes, &DecodeOptions::default()).map_err(|e| codec_err(e.to_string()))?;
+        lossy_decode_times.push(start.elapsed().as_secs_f64());
+    }
 
     // Prefixes of one 9/7 stream at 2 bpp and of the lossless stream.
     let mut options = EncodeOptions::new(Quality::Lossless, Some((2.0 * samples / 8.0) as u64));
@@ -309,6 +327,8 @@ pub fn measure(
         encode_msps: samples / median(encode_times) / 1e6,
         decode_msps: samples / median(decode_times) / 1e6,
         decode_peak_ratio: peak_ratio,
+        lossy_encode_msps: samples / median(lossy_encode_times) / 1e6,
+        lossy_decode_msps: samples / median(lossy_decode_times) / 1e6,
         rates,
         bounds,
     })
@@ -507,21 +527,27 @@ pub fn markdown(results: &[DemResult], peers: &[PeerRow]) -> String {
         out.push('\n');
     }
     out.push_str(
-        "\n### Speed and memory (lossless, one thread; OpenJPEG timed as whole processes)\n\n",
+        "\n### Speed and memory (one thread; OpenJPEG timed as whole processes, so its small-DEM figures are lower bounds)\n\n",
     );
-    out.push_str("| DEM | samples | wavemesh encode MS/s | decode MS/s | OpenJPEG 5/3 encode | decode | decode heap peak / raster |\n");
-    out.push_str("|---|---:|---:|---:|---:|---:|---:|\n");
+    out.push_str("| DEM | samples | lossless encode MS/s | OpenJPEG 5/3 | lossless decode MS/s | OpenJPEG 5/3 | 9/7 1 bpp encode MS/s | OpenJPEG 9/7 | 9/7 1 bpp decode MS/s | OpenJPEG 9/7 | decode heap peak / raster |\n");
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for r in results {
-        let opj = peer_rows(peers, &r.name).find(|p| p.codec == "opj-53" && p.mode == "lossless");
+        let opj53 = peer_rows(peers, &r.name).find(|p| p.codec == "opj-53" && p.mode == "lossless");
+        let opj97 = peer_rows(peers, &r.name)
+            .find(|p| p.codec == "opj-97" && p.mode == "rate" && p.target_bpp == Some(1.0));
         out.push_str(&format!(
-            "| {} | {}x{} | {:.1} | {:.1} | {} | {} | {:.2}× |\n",
+            "| {} | {}x{} | {:.1} | {} | {:.1} | {} | {:.1} | {} | {:.1} | {} | {:.2}× |\n",
             r.name,
             r.width,
             r.height,
             r.encode_msps,
+            fmt_opt(opj53.and_then(|p| p.enc_msps), 1),
             r.decode_msps,
-            fmt_opt(opj.and_then(|p| p.enc_msps), 1),
-            fmt_opt(opj.and_then(|p| p.dec_msps), 1),
+            fmt_opt(opj53.and_then(|p| p.dec_msps), 1),
+            r.lossy_encode_msps,
+            fmt_opt(opj97.and_then(|p| p.enc_msps), 1),
+            r.lossy_decode_msps,
+            fmt_opt(opj97.and_then(|p| p.dec_msps), 1),
             r.decode_peak_ratio,
         ));
     }
