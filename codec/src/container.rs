@@ -87,18 +87,21 @@ pub struct Header {
     pub top_plane: Option<u8>,
     /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
     pub bands: Vec<(u8, f64)>,
-    /// Bytes of the payload in the file.
+    /// Bytes of the payload in the file (framed: with its chunk checksums).
     pub payload_len: u64,
     /// The payload is a prefix of a longer embedded stream (the encoder stopped at a byte
     /// budget or chose a cut): it is decoded as a truncated stream.
     pub payload_truncated: bool,
-    /// Bytes of the coded nodata mask (0: no mask, every sample valid).
+    /// Bytes of the coded nodata mask, framed (0: no mask, every sample valid).
     pub mask_len: u32,
-    /// Bytes of the residual section: exact float residuals (lossless), or max-error
-    /// corrections when `correction_step > 0` (0: no section).
+    /// Bytes of the residual section, framed: exact float residuals (lossless), or
+    /// max-error corrections when `correction_step > 0` (0: no section).
     pub residual_len: u32,
     /// Step of the max-error corrections (0: none).
     pub correction_step: f64,
+    /// Bytes of the ladder section, framed, as read from a file (writing recomputes it
+    /// from `passes`).
+    pub ladder_len: u32,
     /// One record per pass from the top plane down, for the passes the stream holds
     /// completely. Stored in a section at the end of the file (the ladder), so a prefix
     /// spends no bytes on it; empty when the file was truncated before it.
@@ -150,7 +153,7 @@ impl Header {
         out.extend_from_slice(&self.mask_len.to_le_bytes());
         out.extend_from_slice(&self.residual_len.to_le_bytes());
         out.extend_from_slice(&self.correction_step.to_le_bytes());
-        out.extend_from_slice(&(self.ladder_bytes().len() as u32).to_le_bytes());
+        out.extend_from_slice(&(framed_len(self.ladder_bytes().len()) as u32).to_le_bytes());
         match &self.georef {
             None => out.push(0),
             Some(g) => {
@@ -339,19 +342,33 @@ impl Header {
             mask_len,
             residual_len,
             correction_step,
+            ladder_len: ladder_len as u32,
             passes: Vec::new(),
             georef,
         };
-        // The ladder trails the file; a truncated file simply has none to show.
+        for (what, len) in [
+            ("nodata mask", header.mask_len as u64),
+            ("payload", header.payload_len),
+            ("residual section", header.residual_len as u64),
+            ("ladder", ladder_len as u64),
+        ] {
+            if logical_len(len).is_none() {
+                return Err(CodecError::InvalidHeader(format!("{what} length {len}")));
+            }
+        }
+        // The ladder trails the file; a truncated or damaged one is simply not shown.
         let ladder_start = (header_len as u64)
             .saturating_add(header.mask_len as u64)
             .saturating_add(header.payload_len)
             .saturating_add(header.residual_len as u64);
-        if let Some(bytes) = usize::try_from(ladder_start)
+        if let Some(framed) = usize::try_from(ladder_start)
             .ok()
             .and_then(|start| data.get(start..start.checked_add(ladder_len)?))
         {
-            header.passes = parse_ladder(bytes, header.top_plane).unwrap_or_default();
+            let ladder = unframe(framed, ladder_len);
+            if ladder.complete {
+                header.passes = parse_ladder(&ladder.bytes, header.top_plane).unwrap_or_default();
+            }
         }
         Ok((header, header_len))
     }
@@ -367,6 +384,123 @@ impl Header {
         }
         out
     }
+}
+
+/// Bytes of section data per checksummed chunk. Every section after the header (mask,
+/// payload, residuals, ladder) is stored as chunks of this many bytes (the last one
+/// shorter), each followed by the CRC-32 of its bytes.
+pub const CHUNK: usize = 16 * 1024;
+
+/// Size in the file of a section of `logical` bytes.
+pub fn framed_len(logical: usize) -> usize {
+    logical + 4 * logical.div_ceil(CHUNK)
+}
+
+/// Bytes of data in a framed section of `framed` bytes; `None` if no section has that size.
+pub fn logical_len(framed: u64) -> Option<u64> {
+    let chunks = framed.div_ceil(CHUNK as u64 + 4);
+    let logical = framed.checked_sub(4 * chunks)?;
+    (framed_len(usize::try_from(logical).ok()?) as u64 == framed).then_some(logical)
+}
+
+/// File offset, within a framed section, of logical byte `logical`.
+pub fn physical_offset(logical: u64) -> u64 {
+    logical + 4 * (logical / CHUNK as u64)
+}
+
+/// Splits `section` into checksummed chunks.
+pub fn frame(section: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(framed_len(section.len()));
+    for chunk in section.chunks(CHUNK) {
+        out.extend_from_slice(chunk);
+        out.extend_from_slice(&crc32fast::hash(chunk).to_le_bytes());
+    }
+    out
+}
+
+/// A framed section read back.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Unframed {
+    /// The data of every verified chunk, then the unverified bytes of a final chunk cut
+    /// short by the end of the file (truncation is not damage).
+    pub bytes: Vec<u8>,
+    /// Offset within the section of the first chunk whose checksum failed; nothing from
+    /// it on is in `bytes`.
+    pub damaged_at: Option<usize>,
+    /// Every chunk was present and verified.
+    pub complete: bool,
+}
+
+/// Reads a framed section of `framed_total` bytes of which `available` is what the file
+/// holds (a prefix when the file is truncated).
+pub fn unframe(available: &[u8], framed_total: usize) -> Unframed {
+    let available = &available[..available.len().min(framed_total)];
+    let mut bytes = Vec::with_capacity(available.len());
+    let mut start = 0;
+    while start < available.len() {
+        let data_len = CHUNK.min(framed_total.saturating_sub(start + 4));
+        let end = start + data_len;
+        if end + 4 > available.len() {
+            // Cut short by the end of the file: keep what there is, unverified.
+            bytes.extend_from_slice(&available[start..end.min(available.len())]);
+            return Unframed {
+                bytes,
+                damaged_at: None,
+                complete: false,
+            };
+        }
+        let data = &available[start..end];
+        let stored = u32::from_le_bytes(available[end..end + 4].try_into().expect("4 bytes"));
+        if crc32fast::hash(data) != stored {
+            return Unframed {
+                bytes,
+                damaged_at: Some(start),
+                complete: false,
+            };
+        }
+        bytes.extend_from_slice(data);
+        start = end + 4;
+    }
+    Unframed {
+        bytes,
+        damaged_at: None,
+        complete: available.len() == framed_total,
+    }
+}
+
+/// Lays out a file: header, then the framed mask, payload, residual section and ladder.
+/// Sets the header's section lengths; returns the bytes and the header's length.
+pub fn assemble(
+    header: &mut Header,
+    mask: &[u8],
+    payload: &[u8],
+    residual: &[u8],
+) -> (Vec<u8>, usize) {
+    header.mask_len = framed_len(mask.len()) as u32;
+    header.payload_len = framed_len(payload.len()) as u64;
+    header.residual_len = framed_len(residual.len()) as u32;
+    header.ladder_len = framed_len(header.ladder_bytes().len()) as u32;
+    let header_bytes = header.to_bytes();
+    let mut out = Vec::with_capacity(assembled_len(
+        header,
+        mask.len(),
+        payload.len(),
+        residual.len(),
+    ));
+    out.extend_from_slice(&header_bytes);
+    for section in [mask, payload, residual, &header.ladder_bytes()] {
+        out.extend_from_slice(&frame(section));
+    }
+    (out, header_bytes.len())
+}
+
+/// Size of the file [`assemble`] makes from sections of these logical sizes.
+pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usize) -> usize {
+    header.to_bytes().len()
+        + framed_len(mask)
+        + framed_len(payload)
+        + framed_len(residual)
+        + framed_len(header.ladder_bytes().len())
 }
 
 /// A 9/7 subband scale (a synthesis norm, about 0.5–3) in 1/8192 units.
@@ -516,6 +650,7 @@ mod tests {
             mask_len: 17,
             residual_len: 0,
             correction_step: 0.0,
+            ladder_len: 0,
             passes: vec![
                 PassRecord {
                     plane: 17,
@@ -539,17 +674,13 @@ mod tests {
 
     #[test]
     fn header_round_trips() {
-        let h = Header {
-            payload_len: 3,
-            mask_len: 0,
-            ..sample_header()
-        };
-        let mut bytes = h.to_bytes();
-        let len_header = bytes.len();
-        bytes.extend_from_slice(&[1, 2, 3]); // the payload
-        bytes.extend_from_slice(&h.ladder_bytes());
+        let mut h = sample_header();
+        h.mask_len = 0;
+        let (bytes, header_len) = assemble(&mut h, &[], &[1, 2, 3], &[]);
         let (parsed, len) = Header::parse(&bytes).unwrap();
-        assert_eq!(len, len_header);
+        assert_eq!(len, header_len);
+        assert_eq!(parsed.payload_len, 7);
+        assert_eq!(parsed.passes, h.passes);
         // NaN != NaN: compare the nodata bits separately.
         assert_eq!(parsed.nodata.map(f64::to_bits), h.nodata.map(f64::to_bits));
         assert_eq!(
@@ -559,6 +690,31 @@ mod tests {
             },
             Header { nodata: None, ..h }
         );
+    }
+
+    #[test]
+    fn framing_detects_damage_and_tolerates_truncation() {
+        let data: Vec<u8> = (0..40_000u32).map(|i| (i * 7 % 251) as u8).collect();
+        let framed = frame(&data);
+        assert_eq!(framed.len(), framed_len(data.len()));
+        assert_eq!(logical_len(framed.len() as u64), Some(data.len() as u64));
+        let whole = unframe(&framed, framed.len());
+        assert!(whole.complete && whole.damaged_at.is_none());
+        assert_eq!(whole.bytes, data);
+        // A flipped bit in the second chunk: the first chunk survives.
+        let mut damaged = framed.clone();
+        damaged[CHUNK + 4 + 100] ^= 0x10;
+        let read = unframe(&damaged, framed.len());
+        assert_eq!(read.damaged_at, Some(CHUNK + 4));
+        assert_eq!(read.bytes, &data[..CHUNK]);
+        // Truncation inside the third chunk: everything present is kept, unverified.
+        let cut = 2 * (CHUNK + 4) + 50;
+        let read = unframe(&framed[..cut], framed.len());
+        assert!(!read.complete && read.damaged_at.is_none());
+        assert_eq!(read.bytes, &data[..2 * CHUNK + 50]);
+        for bad in [1u64, 2, 3, 4, CHUNK as u64 + 5] {
+            assert_eq!(logical_len(bad), None, "{bad}");
+        }
     }
 
     #[test]

@@ -45,6 +45,15 @@ pub enum CodecError {
         /// The configured limit.
         limit: u64,
     },
+    /// A chunk checksum failed or the file has trailing garbage (strict decoding, or
+    /// damage in a section nothing can be decoded without).
+    #[error("damaged .ezw file: {section} fails its checksum at byte {offset}")]
+    Damaged {
+        /// The damaged section.
+        section: &'static str,
+        /// File offset where the damage starts.
+        offset: u64,
+    },
     /// The encoder was given parameters it cannot honour.
     #[error("invalid encoder parameters: {0}")]
     InvalidParameters(String),

@@ -1,6 +1,6 @@
 //! Whole-file encode and decode: raster → `.ezw` bytes → raster.
 
-use crate::container::{Header, Mode};
+use crate::container::{unframe, Header, Mode, Unframed};
 use crate::error::CodecError;
 use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
@@ -70,7 +70,7 @@ pub struct Encoded {
 /// stream cut where it is cheapest, followed by corrections for the samples its
 /// reconstruction leaves more than E away (see [`encode_with_corrections`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
-    let near_lossless = encode_stream(raster, options)?;
+    let (near_lossless, _) = encode_stream(raster, options)?;
     match (options.wavelet, options.quality, options.budget_bytes) {
         (Wavelet::Int53, Quality::MaxError(e), None)
             if near_lossless.header.mode == Mode::MaxError =>
@@ -102,7 +102,7 @@ pub fn encode_with_corrections(
         quality: Quality::Lossless,
         budget_bytes: Some(limit as u64),
     };
-    let Ok(stream) = encode_stream(raster, &options) else {
+    let Ok((stream, parts)) = encode_stream(raster, &options) else {
         return Ok(None);
     };
     let step = if raster.sample_type().is_integer() {
@@ -110,15 +110,21 @@ pub fn encode_with_corrections(
     } else {
         2.0 * e * 0.999
     };
-    let prefix = stream.header_len + stream.header.mask_len as usize;
-    let payload = &stream.bytes[prefix..];
+    let payload = &parts.payload;
     let mut best: Option<Encoded> = None;
     let mut tried: Vec<(usize, usize)> = Vec::new();
     let mut evaluate = |cut: usize| -> Result<usize, CodecError> {
         if let Some(&(_, size)) = tried.iter().find(|(c, _)| *c == cut) {
             return Ok(size);
         }
-        let size = match corrected_file(raster, &stream, &payload[..cut], e, step)? {
+        let size = match corrected_file(
+            raster,
+            &stream.header,
+            &parts.mask,
+            &payload[..cut],
+            e,
+            step,
+        )? {
             Some(file) => {
                 let size = file.bytes.len();
                 if best.as_ref().is_none_or(|b| size < b.bytes.len()) {
@@ -158,27 +164,23 @@ pub fn encode_with_corrections(
     Ok(best)
 }
 
-/// The file made of `stream`'s header and mask, `payload`, and the corrections that
-/// bring every valid sample within `e`; `None` if some sample cannot be corrected.
+/// The file made of `header` and `mask`, `payload`, and the corrections that bring every
+/// valid sample within `e`; `None` if some sample cannot be corrected.
 fn corrected_file(
     raster: &Raster,
-    stream: &Encoded,
+    header: &Header,
+    mask: &[u8],
     payload: &[u8],
     e: f64,
     step: f64,
 ) -> Result<Option<Encoded>, CodecError> {
-    let mask_bytes =
-        &stream.bytes[stream.header_len..stream.header_len + stream.header.mask_len as usize];
-    let mut header = stream.header.clone();
-    header.payload_len = payload.len() as u64;
+    let mut header = header.clone();
     header.payload_truncated = true;
     header.passes.retain(|p| p.end_byte <= payload.len() as u64);
-    header.residual_len = 0;
     header.correction_step = 0.0;
-    let mut file = header.to_bytes();
-    file.extend_from_slice(mask_bytes);
-    file.extend_from_slice(payload);
+    let (file, _) = crate::container::assemble(&mut header, mask, payload, &[]);
     let decoded = decode(&file, &DecodeOptions::default())?;
+    drop(file);
     let (lo, hi) = raster.sample_type().value_range();
     let mut corrections = Vec::new();
     for i in 0..raster.len() {
@@ -198,18 +200,13 @@ fn corrected_file(
         corrections.push(k as i32);
     }
     let correction_bytes = encode_residuals(&corrections);
-    header.residual_len = correction_bytes.len() as u32;
     header.correction_step = step;
     header.mode = Mode::MaxError;
     header.max_error = e;
-    let header_bytes = header.to_bytes();
-    let mut bytes = header_bytes.clone();
-    bytes.extend_from_slice(mask_bytes);
-    bytes.extend_from_slice(payload);
-    bytes.extend_from_slice(&correction_bytes);
-    bytes.extend_from_slice(&header.ladder_bytes());
+    let (bytes, header_len) =
+        crate::container::assemble(&mut header, mask, payload, &correction_bytes);
     Ok(Some(Encoded {
-        header_len: header_bytes.len(),
+        header_len,
         bytes,
         header,
     }))
@@ -232,8 +229,14 @@ fn apply_correction(
     }
 }
 
+/// The sections of an encoded file before framing.
+struct Parts {
+    mask: Vec<u8>,
+    payload: Vec<u8>,
+}
+
 /// Encodes one stream as `options` say (no choice between methods).
-fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, Parts), CodecError> {
     let (width, height) = (raster.width, raster.height);
     if width == 0 || height == 0 || raster.samples.len() != width * height {
         return Err(CodecError::Dimensions {
@@ -316,6 +319,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
         mask_len: mask_bytes.len() as u32,
         residual_len: residual_bytes.len() as u32,
         correction_step: 0.0,
+        ladder_len: 0,
         passes: Vec::new(),
         georef: raster.georef.clone(),
     };
@@ -337,27 +341,24 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
         budget.map(|total| total - fixed),
     );
     let mut payload_bytes = payload.bytes;
-    // File: header | mask | payload | residuals | ladder.
+    // File: header | mask | payload | residuals | ladder (sections framed).
     let file_len = |header: &Header, payload_len: usize, residual_len: usize| {
-        header.to_bytes().len()
-            + mask_bytes.len()
-            + payload_len
-            + residual_len
-            + header.ladder_bytes().len()
+        crate::container::assembled_len(header, mask_bytes.len(), payload_len, residual_len)
     };
     header.passes = payload.passes.clone();
-    header.payload_len = payload_bytes.len() as u64;
     let cut = !payload.complete
         || budget.is_some_and(|total| {
             file_len(&header, payload_bytes.len(), residual_bytes.len()) > total
         });
+    let mut residual_bytes = residual_bytes;
     if cut {
         // Cut the payload so the whole file is exactly the budget. The ladder lists only
-        // the passes the kept payload holds, so its size depends on the cut: iterate to
-        // the fixed point (it shrinks monotonically, in a few steps).
+        // the passes the kept payload holds and framing adds 4 bytes a chunk, so the
+        // size depends on the cut: iterate to the fixed point (it shrinks monotonically,
+        // in a few steps).
         let total = budget.expect("only a budget cuts a stream");
         header.payload_truncated = true;
-        header.residual_len = 0;
+        residual_bytes.clear();
         header.mode = Mode::Lossy;
         header.max_error = f64::INFINITY;
         let mut keep = payload_bytes.len();
@@ -368,34 +369,32 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Co
                 .copied()
                 .filter(|p| p.end_byte <= keep as u64)
                 .collect();
-            header.payload_len = keep as u64;
-            let room = (total + keep).saturating_sub(file_len(&header, keep, 0));
-            if room >= keep {
-                // Dropping a pass record may leave a few bytes of room: fill them (a pass
-                // they complete simply goes unlisted).
-                keep = room.min(payload_bytes.len());
+            let over = file_len(&header, keep, 0).saturating_sub(total);
+            if over == 0 {
+                // Dropping a pass record or a chunk checksum may leave a few bytes of
+                // room: fill them (a pass they complete simply goes unlisted).
+                while keep < payload_bytes.len() && file_len(&header, keep + 1, 0) <= total {
+                    keep += 1;
+                }
                 break;
             }
-            keep = room;
+            keep = keep.saturating_sub(over);
         }
         payload_bytes.truncate(keep);
-        header.payload_len = keep as u64;
     }
-    let header_bytes = header.to_bytes();
-    let mut bytes =
-        Vec::with_capacity(file_len(&header, payload_bytes.len(), residual_bytes.len()));
-    bytes.extend_from_slice(&header_bytes);
-    bytes.extend_from_slice(&mask_bytes);
-    bytes.extend_from_slice(&payload_bytes);
-    if !cut {
-        bytes.extend_from_slice(&residual_bytes);
-    }
-    bytes.extend_from_slice(&header.ladder_bytes());
-    Ok(Encoded {
-        header_len: header_bytes.len(),
-        bytes,
-        header,
-    })
+    let (bytes, header_len) =
+        crate::container::assemble(&mut header, &mask_bytes, &payload_bytes, &residual_bytes);
+    Ok((
+        Encoded {
+            header_len,
+            bytes,
+            header,
+        },
+        Parts {
+            mask: mask_bytes,
+            payload: payload_bytes,
+        },
+    ))
 }
 
 /// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
@@ -683,6 +682,9 @@ pub struct DecodeOptions {
     pub max_passes: Option<u32>,
     /// Resource limits.
     pub limits: Limits,
+    /// Treat any damage (a failed chunk checksum, trailing garbage) as an error instead of
+    /// decoding the undamaged prefix.
+    pub strict: bool,
 }
 
 /// A decoded stream.
@@ -698,6 +700,17 @@ pub struct Decoded {
     pub complete: bool,
     /// File bytes the decode used.
     pub bytes_used: u64,
+    /// Where the file is damaged, if it is (the decode used only what precedes it).
+    pub damage: Option<Damage>,
+}
+
+/// The first damaged place of a file: a chunk whose checksum fails, or trailing garbage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Damage {
+    /// Which section: "payload", "residual section", "ladder" or "trailing bytes".
+    pub section: &'static str,
+    /// File offset where the damage starts.
+    pub offset: u64,
 }
 
 /// Builds output samples from reconstructed values, in place where the output type is no
@@ -818,24 +831,69 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     }
     let (width, height) = (header.width as usize, header.height as usize);
     let n = n as usize;
-    let mask_end = header_len + header.mask_len as usize;
+    // Sections: header | mask | payload | residuals | ladder, each framed in
+    // checksummed chunks. Damage is the first chunk whose checksum fails, or bytes past
+    // the end of the file the header describes.
+    let section = |start: usize, len: usize| -> Unframed {
+        unframe(data.get(start.min(data.len())..).unwrap_or(&[]), len)
+    };
+    let mut damage: Option<Damage> = None;
+    let mut note_damage = |what: &'static str, offset: usize| {
+        if damage.is_none_or(|d| (offset as u64) < d.offset) {
+            damage = Some(Damage {
+                section: what,
+                offset: offset as u64,
+            });
+        }
+    };
+    let mask_start = header_len;
+    let payload_start = mask_start + header.mask_len as usize;
+    let residual_start = payload_start + header.payload_len as usize;
+    let ladder_start = residual_start + header.residual_len as usize;
     let mask = if header.mask_len > 0 {
-        let bytes = data
-            .get(header_len..mask_end)
-            .ok_or(CodecError::TruncatedHeader(
+        let framed = section(mask_start, header.mask_len as usize);
+        if let Some(at) = framed.damaged_at {
+            return Err(CodecError::Damaged {
+                section: "nodata mask",
+                offset: (mask_start + at) as u64,
+            });
+        }
+        if !framed.complete {
+            return Err(CodecError::TruncatedHeader(
                 "file ends inside the nodata mask",
-            ))?;
-        Some(decode_mask(bytes, width, n))
+            ));
+        }
+        Some(decode_mask(&framed.bytes, width, n))
     } else {
         None
     };
-    let available = data.len().saturating_sub(mask_end);
-    let payload_len = (header.payload_len.min(available as u64)) as usize;
-    let payload = &data[mask_end..mask_end + payload_len];
-    // All of the payload the encoder wrote is here.
-    let payload_present = payload_len as u64 == header.payload_len;
+    let payload_framed = section(payload_start, header.payload_len as usize);
+    if let Some(at) = payload_framed.damaged_at {
+        note_damage("payload", payload_start + at);
+    }
+    let payload = &payload_framed.bytes[..];
+    // All of the payload the encoder wrote is here, undamaged...
+    let payload_present = payload_framed.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
     let payload_complete = payload_present && !header.payload_truncated;
+    let residual_framed = section(residual_start, header.residual_len as usize);
+    if let Some(at) = residual_framed.damaged_at {
+        note_damage("residual section", residual_start + at);
+    }
+    let ladder_framed = section(ladder_start, header.ladder_len as usize);
+    if let Some(at) = ladder_framed.damaged_at {
+        note_damage("ladder", ladder_start + at);
+    }
+    let file_end = ladder_start + header.ladder_len as usize;
+    if data.len() > file_end && options.max_bytes.is_none_or(|m| m as usize > file_end) {
+        note_damage("trailing bytes", file_end);
+    }
+    if let (true, Some(d)) = (options.strict, damage) {
+        return Err(CodecError::Damaged {
+            section: d.section,
+            offset: d.offset,
+        });
+    }
     let levels = header.levels as u32;
     let subbands = wavelet::subbands(width, height, levels);
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
@@ -890,8 +948,9 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     };
     // The residual section: exact float residuals once the whole stream is decoded, or
     // max-error corrections once the whole (cut) payload is.
-    let residual_start = mask_end + payload.len();
-    let residual_bytes = data.get(residual_start..residual_start + header.residual_len as usize);
+    let residual_bytes = residual_framed
+        .complete
+        .then_some(&residual_framed.bytes[..]);
     let valid_count = || mask_ref.map_or(n, |m| m.iter().filter(|&&v| v).count());
     let residuals_complete = match residual_bytes {
         _ if header.residual_len == 0 => true,
@@ -923,12 +982,11 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let mut raster = Raster::new(width, height, samples)?;
     raster.nodata = header.nodata;
     raster.georef = header.georef.clone();
-    let bytes_used = (residual_start
-        + if residuals_complete {
-            header.residual_len as usize
-        } else {
-            0
-        })
+    let bytes_used = (if residuals_complete && header.residual_len > 0 {
+        ladder_start
+    } else {
+        payload_start + crate::container::physical_offset(payload.len() as u64) as usize
+    })
     .min(data.len()) as u64;
     Ok(Decoded {
         raster,
@@ -936,6 +994,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
         complete: payload_present
             && (ezw_complete || header.payload_truncated)
             && residuals_complete,
+        damage,
         bytes_used,
         header,
     })

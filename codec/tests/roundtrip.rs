@@ -280,3 +280,45 @@ fn max_error_by_corrections_holds_and_its_prefixes_decode() {
         }
     }
 }
+
+#[test]
+fn every_bit_flip_after_the_header_is_detected_and_the_prefix_before_it_decodes() {
+    let raster = terrain(40, 30, SampleType::I16, 8, 900.0);
+    let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+    let clean = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+    assert!(clean.damage.is_none() && clean.complete);
+    let mut flips = 0;
+    for i in encoded.header_len..encoded.bytes.len() {
+        for bit in 0..8 {
+            let mut damaged = encoded.bytes.clone();
+            damaged[i] ^= 1 << bit;
+            let decoded = decode(&damaged, &DecodeOptions::default()).unwrap();
+            let damage = decoded.damage.expect("a flipped bit is detected");
+            assert!(
+                damage.offset <= i as u64,
+                "damage reported at {} for a flip at {i}",
+                damage.offset
+            );
+            assert!(!decoded.complete || damage.section == "ladder");
+            let strict = DecodeOptions {
+                strict: true,
+                ..DecodeOptions::default()
+            };
+            assert!(decode(&damaged, &strict).is_err());
+            flips += 1;
+        }
+    }
+    assert!(flips > 1000);
+    // A garbage tail is damage too; truncation is not.
+    let mut longer = encoded.bytes.clone();
+    longer.extend_from_slice(b"garbage");
+    let tail = decode(&longer, &DecodeOptions::default()).unwrap();
+    assert_eq!(tail.damage.map(|d| d.section), Some("trailing bytes"));
+    assert_eq!(tail.raster, raster);
+    let truncated = decode(
+        &encoded.bytes[..encoded.bytes.len() - 10],
+        &DecodeOptions::default(),
+    )
+    .unwrap();
+    assert!(truncated.damage.is_none());
+}

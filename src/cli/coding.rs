@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use wavemesh::metrics::{self, Distortion};
+use wavemesh_codec::container::physical_offset;
 use wavemesh_codec::{
     decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header,
     Quality, Raster,
@@ -66,6 +67,10 @@ pub struct DecodeArgs {
     /// Refuse streams that need more decoder memory than this many bytes.
     #[arg(long, default_value_t = 16 << 30)]
     max_memory: u64,
+    /// Treat damage (a failed chunk checksum, trailing garbage) as an error instead of
+    /// decoding the undamaged prefix with a warning.
+    #[arg(long)]
+    strict: bool,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -231,7 +236,14 @@ struct DecodeReport<'a> {
     decode_peak_heap_bytes: u64,
     raster_bytes: u64,
     peak_heap_per_raster_byte: f64,
+    damage: Option<DamageReport>,
     distortion: Option<Distortion>,
+}
+
+#[derive(Serialize)]
+struct DamageReport {
+    section: &'static str,
+    offset: u64,
 }
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
@@ -255,11 +267,21 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         max_bytes,
         max_passes: None,
         limits: args.input_args.limits(args.max_memory),
+        strict: args.strict,
     };
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =
         with_progress("decoding", || timed(|| decode_stream(&data, &options)));
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    if let Some(d) = decoded.damage {
+        eprintln!(
+            "wavemesh: warning: {}: {} damaged at byte {}; decoded the {} bytes before it (--strict makes this an error)",
+            args.input.display(),
+            d.section,
+            d.offset,
+            decoded.bytes_used
+        );
+    }
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let distortion = match &args.reference {
         None => None,
@@ -287,6 +309,10 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         decode_peak_heap_bytes: peak as u64,
         raster_bytes,
         peak_heap_per_raster_byte: peak as f64 / raster_bytes as f64,
+        damage: decoded.damage.map(|d| DamageReport {
+            section: d.section,
+            offset: d.offset,
+        }),
         distortion,
     };
     if args.json {
@@ -361,8 +387,9 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
     let (w, h) = (header.width as usize, header.height as usize);
     let payload_start = (header_len + header.mask_len as usize) as u64;
     let valid = if header.mask_len > 0 {
-        let mask_bytes = data.get(header_len..payload_start as usize).unwrap_or(&[]);
-        wavemesh_codec::mask::decode_mask(mask_bytes, w, w * h)
+        let framed = data.get(header_len..).unwrap_or(&[]);
+        let mask = wavemesh_codec::container::unframe(framed, header.mask_len as usize);
+        wavemesh_codec::mask::decode_mask(&mask.bytes, w, w * h)
             .iter()
             .filter(|&&v| v)
             .count()
@@ -377,8 +404,8 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
             let rmse = (p.squared_error / valid.max(1.0)).sqrt();
             PassReport {
                 plane: p.plane,
-                end_byte: payload_start + p.end_byte,
-                bpp: metrics::bits_per_sample(payload_start + p.end_byte, w, h),
+                end_byte: payload_start + physical_offset(p.end_byte),
+                bpp: metrics::bits_per_sample(payload_start + physical_offset(p.end_byte), w, h),
                 estimated_rmse: rmse,
                 estimated_psnr_db: metrics::psnr(range, rmse),
             }
