@@ -244,3 +244,108 @@ fn demo_runs_on_the_bundled_sample() {
     assert!(rows.iter().any(|r| r["exact"] == true));
     assert!(dir.join("lossless.ezw").exists());
 }
+
+#[test]
+fn verify_reports_intact_damaged_and_truncated_files() {
+    let input = sample("jacksboro_voids.tif");
+    let ezw = scratch("verify.ezw");
+    json(&wavemesh(&[
+        "encode",
+        s(&input),
+        "-o",
+        s(&ezw),
+        "--verify",
+        "--json",
+    ]));
+    let intact = json(&wavemesh(&["verify", s(&ezw), "--json"]));
+    assert_eq!(intact["damaged"], false);
+    assert_eq!(intact["truncated"], false);
+    assert_eq!(intact["usable_bytes"], intact["file_bytes"]);
+
+    let mut bytes = std::fs::read(&ezw).unwrap();
+    let flip = bytes.len() / 2;
+    bytes[flip] ^= 0x20;
+    let damaged = scratch("verify-damaged.ezw");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let result = wavemesh(&["verify", s(&damaged), "--json"]);
+    assert_eq!(result.status.code(), Some(3));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+    assert_eq!(report["damaged"], true);
+    assert!(report["usable_bytes"].as_u64().unwrap() <= flip as u64);
+
+    // decode: a warning and the undamaged prefix; --strict: an error and no file.
+    let out = scratch("verify-damaged.tif");
+    let _ = std::fs::remove_file(&out);
+    let lenient = wavemesh(&["decode", s(&damaged), "-o", s(&out), "--json"]);
+    assert!(lenient.status.success());
+    assert!(String::from_utf8_lossy(&lenient.stderr).contains("warning"));
+    let report: serde_json::Value = serde_json::from_slice(&lenient.stdout).unwrap();
+    assert_eq!(report["damage"]["section"], "payload");
+    assert!(out.exists());
+    std::fs::remove_file(&out).unwrap();
+    let strict = wavemesh(&["decode", s(&damaged), "-o", s(&out), "--strict"]);
+    assert_eq!(strict.status.code(), Some(3));
+    assert!(!out.exists());
+
+    let truncated = scratch("verify-truncated.ezw");
+    let clean = std::fs::read(&ezw).unwrap();
+    std::fs::write(&truncated, &clean[..clean.len() * 2 / 3]).unwrap();
+    let report = json(&wavemesh(&["verify", s(&truncated), "--json"]));
+    assert_eq!(report["damaged"], false);
+    assert_eq!(report["truncated"], true);
+}
+
+#[test]
+fn output_into_a_directory_is_refused() {
+    let input = sample("jacksboro_fault.tif");
+    let dir = scratch("a-directory");
+    std::fs::create_dir_all(&dir).unwrap();
+    let before = std::fs::read_dir(&dir).unwrap().count();
+    let result = wavemesh(&["encode", s(&input), "-o", s(&dir)]);
+    assert_eq!(result.status.code(), Some(4));
+    assert!(String::from_utf8_lossy(&result.stderr).contains("directory"));
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), before);
+}
+
+#[test]
+fn killing_an_encode_never_leaves_a_partial_output() {
+    // A raster large enough that encoding takes a while.
+    let big = scratch("kill-input.tif");
+    if !big.exists() {
+        let (w, h) = (2400, 2000);
+        let values: Vec<i16> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                (1000.0
+                    + 700.0 * (x / 97.0).sin() * (y / 73.0).cos()
+                    + 30.0 * (x * y / 5000.0).sin()) as i16
+            })
+            .collect();
+        let raster =
+            wavemesh_codec::Raster::new(w, h, wavemesh_codec::Samples::I16(values)).unwrap();
+        wavemesh::dem::write_dem(&big, &raster).unwrap();
+    }
+    let out = scratch("kill-output.ezw");
+    for delay_ms in [20u64, 80, 200, 400, 700, 1200] {
+        std::fs::write(&out, b"the previous version").unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+            .args(["encode", s(&big), "-o", s(&out)])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = child.kill();
+        let _ = child.wait();
+        let now = std::fs::read(&out).unwrap();
+        if now != b"the previous version" {
+            // The rename happened: the file must be the whole, valid stream.
+            let decoded =
+                wavemesh_codec::decode(&now, &wavemesh_codec::DecodeOptions::default()).unwrap();
+            assert!(
+                decoded.complete && decoded.damage.is_none(),
+                "partial output after {delay_ms} ms"
+            );
+        }
+    }
+}

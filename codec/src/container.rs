@@ -503,6 +503,116 @@ pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usi
         + framed_len(header.ladder_bytes().len())
 }
 
+/// The state of one framed section of a file, as [`verify`] finds it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SectionCheck {
+    /// "nodata mask", "payload", "residual section" or "ladder".
+    pub name: &'static str,
+    /// File offset of the section.
+    pub offset: u64,
+    /// Framed length the header gives.
+    pub framed_len: u64,
+    /// Chunks the section has.
+    pub chunks: u64,
+    /// Chunks present in the file whose checksum holds.
+    pub verified_chunks: u64,
+    /// File offset of the first chunk whose checksum fails.
+    pub damaged_at: Option<u64>,
+    /// Every chunk present and verified.
+    pub complete: bool,
+}
+
+/// What [`verify`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verification {
+    /// The parsed header (its checksum holds).
+    pub header: Header,
+    /// Bytes of the header.
+    pub header_len: u64,
+    /// The framed sections in file order.
+    pub sections: Vec<SectionCheck>,
+    /// Bytes past the end of the file the header describes.
+    pub trailing_bytes: u64,
+    /// Bytes before the first damage (the whole file when there is none).
+    pub usable_bytes: u64,
+    /// Passes of the ladder whose bytes all lie in the usable prefix (when the ladder is
+    /// readable).
+    pub usable_passes: Option<u32>,
+}
+
+impl Verification {
+    /// Whether some checksum failed or garbage trails the file.
+    pub fn damaged(&self) -> bool {
+        self.trailing_bytes > 0 || self.sections.iter().any(|s| s.damaged_at.is_some())
+    }
+
+    /// Whether every section is present (not truncated).
+    pub fn complete(&self) -> bool {
+        self.sections.iter().all(|s| s.complete)
+    }
+}
+
+/// Checks the header checksum and every chunk checksum of a `.ezw` file.
+pub fn verify(data: &[u8]) -> Result<Verification, CodecError> {
+    let (header, header_len) = Header::parse(data)?;
+    let mut offset = header_len as u64;
+    let mut sections = Vec::new();
+    for (name, len) in [
+        ("nodata mask", header.mask_len as u64),
+        ("payload", header.payload_len),
+        ("residual section", header.residual_len as u64),
+        ("ladder", header.ladder_len as u64),
+    ] {
+        let start = (offset as usize).min(data.len());
+        let available = &data[start..(start as u64 + len).min(data.len() as u64) as usize];
+        let read = unframe(available, len as usize);
+        let chunks = (len as usize).div_ceil(CHUNK + 4) as u64;
+        let verified = match read.damaged_at {
+            Some(at) => (at / (CHUNK + 4)) as u64,
+            None => {
+                (available.len() / (CHUNK + 4)) as u64
+                    + u64::from(read.complete && !available.len().is_multiple_of(CHUNK + 4))
+            }
+        };
+        sections.push(SectionCheck {
+            name,
+            offset,
+            framed_len: len,
+            chunks,
+            verified_chunks: verified,
+            damaged_at: read.damaged_at.map(|at| offset + at as u64),
+            complete: read.complete,
+        });
+        offset += len;
+    }
+    let trailing_bytes = (data.len() as u64).saturating_sub(offset);
+    let usable_bytes = sections
+        .iter()
+        .filter_map(|s| s.damaged_at)
+        .min()
+        .unwrap_or(if trailing_bytes > 0 {
+            offset
+        } else {
+            data.len() as u64
+        });
+    let payload = &sections[1];
+    let usable_passes = (!header.passes.is_empty()).then(|| {
+        header
+            .passes
+            .iter()
+            .filter(|p| payload.offset + physical_offset(p.end_byte) <= usable_bytes)
+            .count() as u32
+    });
+    Ok(Verification {
+        header,
+        header_len: header_len as u64,
+        sections,
+        trailing_bytes,
+        usable_bytes,
+        usable_passes,
+    })
+}
+
 /// A 9/7 subband scale (a synthesis norm, about 0.5–3) in 1/8192 units.
 pub fn scale_to_u16(scale: f64) -> u16 {
     (scale * 8192.0).round().clamp(1.0, u16::MAX as f64) as u16

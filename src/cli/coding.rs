@@ -41,6 +41,11 @@ pub struct EncodeArgs {
     /// Report PSNR/RMSE/max error of the encoded stream against this DEM.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
+    /// Decode what was encoded and check it against the input before writing: bit-exact
+    /// for lossless, every sample within the bound for --max-error. Nothing is written
+    /// if the check fails.
+    #[arg(long)]
+    verify: bool,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -122,6 +127,8 @@ struct EncodeReport<'a> {
     encode_seconds: f64,
     encode_msamples_per_second: f64,
     encode_peak_heap_bytes: u64,
+    /// With --verify: the decoded stream's distortion against the input (checked).
+    verified: Option<Distortion>,
     distortion: Option<Distortion>,
 }
 
@@ -156,6 +163,13 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     let (encoded, seconds, peak) =
         with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
     let encoded = encoded.map_err(CliError::Encode)?;
+    let verified = if args.verify {
+        Some(with_progress("verifying", || {
+            verify_encoding(&raster, &encoded)
+        })?)
+    } else {
+        None
+    };
     write_output(&args.output, &encoded.bytes)?;
     let distortion = match &args.reference {
         None => None,
@@ -188,6 +202,7 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         encode_seconds: seconds,
         encode_msamples_per_second: samples / seconds / 1e6,
         encode_peak_heap_bytes: peak as u64,
+        verified,
         distortion,
     };
     if args.json {
@@ -215,6 +230,46 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// Decodes `encoded` and checks the mode's promise against `raster`.
+fn verify_encoding(
+    raster: &Raster,
+    encoded: &wavemesh_codec::Encoded,
+) -> Result<Distortion, CliError> {
+    let fail = |what: String| {
+        CliError::Encode(wavemesh_codec::CodecError::InvalidParameters(format!(
+            "verification failed: {what}; nothing was written"
+        )))
+    };
+    let decoded = decode_stream(&encoded.bytes, &DecodeOptions::default())
+        .map_err(|e| fail(e.to_string()))?;
+    if !decoded.complete || decoded.damage.is_some() {
+        return Err(fail("the stream does not decode completely".into()));
+    }
+    let d = metrics::compare(raster, &decoded.raster).map_err(|e| fail(e.to_string()))?;
+    if d.nodata_mismatches > 0 {
+        return Err(fail(format!(
+            "{} nodata samples differ",
+            d.nodata_mismatches
+        )));
+    }
+    let header = &encoded.header;
+    match header.mode {
+        wavemesh_codec::Mode::Lossless if !d.identical => Err(fail(format!(
+            "lossless stream differs (max error {})",
+            d.max_error
+        ))),
+        wavemesh_codec::Mode::MaxError | wavemesh_codec::Mode::Precision
+            if d.max_error > header.max_error =>
+        {
+            Err(fail(format!(
+                "max error {} exceeds the bound {}",
+                d.max_error, header.max_error
+            )))
+        }
+        _ => Ok(d),
+    }
 }
 
 #[derive(Serialize)]

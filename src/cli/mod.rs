@@ -3,6 +3,7 @@
 mod coding;
 mod demo;
 mod report;
+mod verify;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,6 +28,8 @@ enum Command {
     Decode(coding::DecodeArgs),
     /// Show a .ezw header, its passes and the bytes each pass needs.
     Info(coding::InfoArgs),
+    /// Check every checksum of a .ezw file and report the usable prefix.
+    Verify(verify::VerifyArgs),
     /// Compare two DEMs: range, RMSE, PSNR, max error, valid samples.
     Compare(coding::CompareArgs),
     /// Run the bundled sample end to end and print the results table.
@@ -104,6 +107,9 @@ pub enum CliError {
     /// An output could not be written.
     #[error("{path}: {message}", path = .0.display(), message = .1)]
     Output(PathBuf, String),
+    /// `verify` found damage (the report is already printed).
+    #[error("{}: damaged (see the report above)", .0.display())]
+    Damaged(PathBuf),
     /// Arguments that clap cannot check alone.
     #[error("{0}")]
     Usage(String),
@@ -115,7 +121,10 @@ impl CliError {
     pub fn exit_code(&self) -> u8 {
         match self {
             CliError::Usage(_) => 2,
-            CliError::Input(..) | CliError::Stream(..) | CliError::Dem(_) => 3,
+            CliError::Input(..)
+            | CliError::Stream(..)
+            | CliError::Dem(_)
+            | CliError::Damaged(_) => 3,
             CliError::Output(..) | CliError::DemOutput(_) => 4,
             CliError::Encode(_) => 1,
         }
@@ -128,6 +137,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Encode(args) => coding::encode(&args),
         Command::Decode(args) => coding::decode(&args),
         Command::Info(args) => coding::info(&args),
+        Command::Verify(args) => verify::run(&args),
         Command::Compare(args) => coding::compare(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
