@@ -349,3 +349,22 @@ fn killing_an_encode_never_leaves_a_partial_output() {
         }
     }
 }
+
+#[test]
+fn a_header_claiming_a_huge_raster_is_refused_at_once() {
+    let input = sample("jacksboro_fault.tif");
+    let ezw = scratch("huge-source.ezw");
+    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    let bytes = std::fs::read(&ezw).unwrap();
+    let (mut header, _) = wavemesh_codec::Header::parse(&bytes).unwrap();
+    header.width = 30_000;
+    header.height = 30_000;
+    let forged = scratch("huge.ezw");
+    std::fs::write(&forged, header.to_bytes()).unwrap();
+    let start = std::time::Instant::now();
+    let result = wavemesh(&["decode", s(&forged), "-o", s(&scratch("huge.tif"))]);
+    assert_eq!(result.status.code(), Some(3));
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(stderr.contains("exceeds the limit"), "{stderr}");
+    assert!(start.elapsed() < std::time::Duration::from_secs(5));
+}

@@ -36,7 +36,7 @@ pub enum CodecError {
         height: u64,
     },
     /// Decoding would exceed a configured resource limit.
-    #[error("{what} ({needed}) exceeds the limit ({limit}); raise it if the file is trusted")]
+    #[error("{what} ({needed}) exceeds the limit ({limit}); raise it (--max-samples, --max-memory) if the file is trusted")]
     LimitExceeded {
         /// What was being limited.
         what: &'static str,

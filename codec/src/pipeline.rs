@@ -668,7 +668,7 @@ impl Default for Limits {
     fn default() -> Self {
         Limits {
             max_samples: 1 << 30,
-            max_memory: 16 << 30,
+            max_memory: 2 << 30,
         }
     }
 }

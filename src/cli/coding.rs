@@ -70,7 +70,7 @@ pub struct DecodeArgs {
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
     /// Refuse streams that need more decoder memory than this many bytes.
-    #[arg(long, default_value_t = 16 << 30)]
+    #[arg(long, default_value_t = 2 << 30)]
     max_memory: u64,
     /// Treat damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix with a warning.
