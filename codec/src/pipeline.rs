@@ -5,11 +5,13 @@ use crate::error::CodecError;
 use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
 };
-use crate::mask::{decode_mask, encode_mask};
+use crate::mask::{decode_mask, encode_mask, Mask};
 use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{decode_residuals, encode_residuals};
 use crate::wavelet::{self, Wavelet};
+use bitvec::order::Lsb0;
+use bitvec::slice::BitSlice;
 
 /// What the encoder should achieve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -720,7 +722,7 @@ fn to_samples<X: Copy>(
     sample_type: SampleType,
     values: Vec<X>,
     value_of: impl Fn(X) -> f64,
-    mask: Option<&[bool]>,
+    mask: Option<&BitSlice<u64, Lsb0>>,
     nodata: Option<f64>,
 ) -> Samples {
     let fill = nodata.unwrap_or(f64::NAN);
@@ -762,13 +764,13 @@ fn to_samples<X: Copy>(
 /// Adds `k · step` to every valid sample, `k` taken in order from `corrections`.
 fn apply_corrections(
     samples: &mut Samples,
-    mask: Option<&[bool]>,
+    mask: Option<&BitSlice<u64, Lsb0>>,
     step: f64,
     corrections: &mut impl Iterator<Item = i32>,
 ) {
     fn each<T: Copy>(
         values: &mut [T],
-        mask: Option<&[bool]>,
+        mask: Option<&BitSlice<u64, Lsb0>>,
         corrections: &mut impl Iterator<Item = i32>,
         mut apply: impl FnMut(T, f64) -> T,
     ) {
@@ -871,7 +873,6 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     if let Some(at) = payload_framed.damaged_at {
         note_damage("payload", payload_start + at);
     }
-    let payload = &payload_framed.bytes[..];
     // All of the payload the encoder wrote is here, undamaged...
     let payload_present = payload_framed.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
@@ -900,19 +901,21 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
     let decoder = Decoder::run(
         &layout,
-        payload,
+        &payload_framed.bytes,
         payload_complete,
         header.top_plane.map(u32::from),
         options.max_passes,
     );
+    // The payload copy is no longer needed: free it before the image is built.
+    let payload_data_len = payload_framed.bytes.len();
+    drop(payload_framed);
     let passes_decoded = decoder.passes_completed;
     let ezw_complete = decoder.complete && payload_complete;
-    // Reconstruct in place: the coefficient buffer becomes the image, then the samples
-    // (in-place collects reuse the allocation), so the decode never holds two full-size
-    // buffers of more than the output's size.
+    // Reconstruct in place: the coefficient buffer becomes the image, then the samples,
+    // so the decode holds at most the coefficients (4 bytes a sample) and the output.
     let mapping = header.mapping;
     let nodata = header.nodata;
-    let mask_ref = mask.as_deref();
+    let mask_ref = mask.as_ref().map(Mask::as_bitslice);
     let mut samples = match header.wavelet {
         Wavelet::Int53 => {
             let mut coefficients = decoder.integer_coefficients();
@@ -951,7 +954,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let residual_bytes = residual_framed
         .complete
         .then_some(&residual_framed.bytes[..]);
-    let valid_count = || mask_ref.map_or(n, |m| m.iter().filter(|&&v| v).count());
+    let valid_count = || mask_ref.map_or(n, |m| m.count_ones());
     let residuals_complete = match residual_bytes {
         _ if header.residual_len == 0 => true,
         Some(bytes) if header.correction_step > 0.0 && payload_present => {
@@ -985,7 +988,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let bytes_used = (if residuals_complete && header.residual_len > 0 {
         ladder_start
     } else {
-        payload_start + crate::container::physical_offset(payload.len() as u64) as usize
+        payload_start + crate::container::physical_offset(payload_data_len as u64) as usize
     })
     .min(data.len()) as u64;
     Ok(Decoded {

@@ -444,10 +444,7 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
     let valid = if header.mask_len > 0 {
         let framed = data.get(header_len..).unwrap_or(&[]);
         let mask = wavemesh_codec::container::unframe(framed, header.mask_len as usize);
-        wavemesh_codec::mask::decode_mask(&mask.bytes, w, w * h)
-            .iter()
-            .filter(|&&v| v)
-            .count()
+        wavemesh_codec::mask::decode_mask(&mask.bytes, w, w * h).count_ones()
     } else {
         w * h
     } as f64;
