@@ -336,7 +336,7 @@ mod tests {
             let input = bits(20_000, seed, p);
             let stream = encode_all(&input, 3);
             let mut dec = ArithmeticDecoder::new(&stream, true);
-            let mut models = vec![BitModel::new(); 3];
+            let mut models = [BitModel::new(); 3];
             for (i, &b) in input.iter().enumerate() {
                 let got = if i % 7 == 3 {
                     dec.decode_raw()
@@ -386,7 +386,7 @@ mod tests {
         let mut previous = 0;
         for cut in 0..=stream.len() {
             let mut dec = ArithmeticDecoder::new(&stream[..cut], cut == stream.len());
-            let mut models = vec![BitModel::new(); 2];
+            let mut models = [BitModel::new(); 2];
             let mut correct = 0;
             for (i, &b) in input.iter().enumerate() {
                 let got = if i % 7 == 3 {

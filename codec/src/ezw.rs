@@ -1036,7 +1036,7 @@ mod tests {
                 s ^= s << 17;
                 let r = ((s >> 33) as i64 % (2 * scale as i64 + 1)) as i32 - scale;
                 // Laplacian-ish: most values small.
-                if s % 5 == 0 {
+                if s.is_multiple_of(5) {
                     r
                 } else {
                     r / 64

@@ -97,7 +97,7 @@ proptest! {
         let mut raster = terrain(w, h, SampleType::I16, seed, 2000.0);
         if let Samples::I16(v) = &mut raster.samples {
             for (i, s) in v.iter_mut().enumerate() {
-                if (i as u64).wrapping_mul(seed | 1) % 7 == 0 {
+                if (i as u64).wrapping_mul(seed | 1).is_multiple_of(7) {
                     *s = -32768;
                 }
             }
