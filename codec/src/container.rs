@@ -346,6 +346,7 @@ impl Header {
             passes: Vec::new(),
             georef,
         };
+        let mut file_len = header_len as u64;
         for (what, len) in [
             ("nodata mask", header.mask_len as u64),
             ("payload", header.payload_len),
@@ -355,6 +356,13 @@ impl Header {
             if logical_len(len).is_none() {
                 return Err(CodecError::InvalidHeader(format!("{what} length {len}")));
             }
+            // Offsets are computed in usize: the whole file must be addressable.
+            file_len = file_len
+                .checked_add(len)
+                .filter(|&end| end <= MAX_FILE_LEN)
+                .ok_or_else(|| {
+                    CodecError::InvalidHeader(format!("{what} length {len} runs past any file"))
+                })?;
         }
         // The ladder trails the file; a truncated or damaged one is simply not shown.
         let ladder_start = (header_len as u64)
@@ -669,6 +677,10 @@ fn parse_ladder(bytes: &[u8], top_plane: Option<u8>) -> Option<Vec<PassRecord>> 
     }
     (r.pos == bytes.len()).then_some(passes)
 }
+
+/// Largest file the container describes (2^48 bytes, far beyond any DEM, and well inside
+/// `usize` arithmetic on 64-bit targets).
+const MAX_FILE_LEN: u64 = 1 << 48;
 
 /// Largest header this build writes (georeferencing included) — a bigger claimed length
 /// is corruption, not truncation.

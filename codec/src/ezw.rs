@@ -57,6 +57,16 @@ struct Band {
     has_children: bool,
 }
 
+impl Band {
+    /// The band's own bit-plane coded in the pass of global plane `n`, if the band takes
+    /// part: `n − shift`, when that is a plane a coefficient can have (0 ..= 30).
+    #[inline]
+    fn plane_in_pass(&self, n: u32) -> Option<u32> {
+        n.checked_sub(self.shift)
+            .filter(|&p| p <= MAX_COEFFICIENT_PLANE)
+    }
+}
+
 /// The subbands of a transformed image, with the per-band shifts and parent links.
 #[derive(Debug, Clone)]
 pub struct CoefficientLayout {
@@ -367,8 +377,9 @@ fn scan_pass<S: Side>(
         if sub.width == 0 || sub.height == 0 {
             continue;
         }
-        if n < band.shift {
-            // Every bit of this band is known already: it covers none of its children.
+        let Some(p) = band.plane_in_pass(n) else {
+            // Nothing of this band is coded in this pass (every bit is known already, or
+            // the plane is above any coefficient's): it covers none of its children.
             for y in 0..sub.height {
                 let row = grid.bit(sub.x0, sub.y0 + y);
                 for chunk in (0..sub.width).step_by(64) {
@@ -381,11 +392,10 @@ fn scan_pass<S: Side>(
                 }
             }
             continue;
-        }
-        let p = n - band.shift;
+        };
         let parent = band
             .parent
-            .filter(|&pb| n >= layout.bands[pb].shift)
+            .filter(|&pb| layout.bands[pb].plane_in_pass(n).is_some())
             .map(|pb| {
                 let ps = layout.bands[pb].sub;
                 ParentBand {
@@ -490,10 +500,9 @@ fn scan_pass<S: Side>(
     }
     // Subordinate scan: the significant coefficients, in the same order.
     for (b, band) in layout.bands.iter().enumerate() {
-        if n < band.shift {
+        let Some(p) = band.plane_in_pass(n) else {
             continue;
-        }
-        let p = n - band.shift;
+        };
         let sub = band.sub;
         for y in 0..sub.height {
             let gy = sub.y0 + y;

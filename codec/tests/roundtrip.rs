@@ -322,3 +322,28 @@ fn every_bit_flip_after_the_header_is_detected_and_the_prefix_before_it_decodes(
     .unwrap();
     assert!(truncated.damage.is_none());
 }
+
+#[test]
+fn wide_range_integers_round_trip() {
+    // 26-bit range (millimetres over 67 km): planes up to 30 plus subband shifts take the
+    // global plane past 31, which the coder must handle.
+    let (w, h) = (520, 300);
+    let values: Vec<i32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            (((x * 0.017).sin() * (y * 0.011).cos()) * 33_000_000.0) as i32
+                + (i as i32 * 7919) % 1000
+        })
+        .collect();
+    let raster = Raster::new(w, h, Samples::I32(values)).unwrap();
+    let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+    let top = encoded.header.top_plane.unwrap();
+    eprintln!("top plane {top}");
+    assert!(top > 30, "the test must reach global planes above 30");
+    assert_eq!(
+        decode(&encoded.bytes, &DecodeOptions::default())
+            .unwrap()
+            .raster,
+        raster
+    );
+}
