@@ -4,6 +4,7 @@
 
 pub mod atomic;
 pub mod dem;
+pub mod fuzzing;
 pub mod memory;
 pub mod metrics;
 pub mod report;

@@ -22,6 +22,7 @@ pub mod container;
 pub mod entropy;
 pub mod error;
 pub mod ezw;
+pub mod fuzzing;
 pub mod mask;
 pub mod pipeline;
 pub mod quantize;

@@ -1,0 +1,7 @@
+//! `cargo +nightly fuzz run read_terrain_rgb`: `wavemesh::fuzzing::read_arbitrary` as `DemFormat::TerrainRgb`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use wavemesh::dem::DemFormat;
+
+fuzz_target!(|data: &[u8]| wavemesh::fuzzing::read_arbitrary(data, DemFormat::TerrainRgb));
