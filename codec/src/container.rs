@@ -439,40 +439,69 @@ pub struct Unframed {
     pub complete: bool,
 }
 
-/// Reads a framed section of `framed_total` bytes of which `available` is what the file
-/// holds (a prefix when the file is truncated).
-pub fn unframe(available: &[u8], framed_total: usize) -> Unframed {
+/// What the checksums of a framed section say, without copying it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameCheck {
+    /// Data bytes usable: every verified chunk, then the unverified bytes of a final
+    /// chunk cut short by the end of the file.
+    pub data_len: usize,
+    /// Offset within the section of the first chunk whose checksum failed.
+    pub damaged_at: Option<usize>,
+    /// Every chunk was present and verified.
+    pub complete: bool,
+}
+
+/// Checks a framed section of `framed_total` bytes of which `available` is what the
+/// file holds (a prefix when the file is truncated).
+pub fn check_frames(available: &[u8], framed_total: usize) -> FrameCheck {
     let available = &available[..available.len().min(framed_total)];
-    let mut bytes = Vec::with_capacity(available.len());
+    let mut data_len = 0;
     let mut start = 0;
     while start < available.len() {
-        let data_len = CHUNK.min(framed_total.saturating_sub(start + 4));
-        let end = start + data_len;
+        let chunk_len = CHUNK.min(framed_total.saturating_sub(start + 4));
+        let end = start + chunk_len;
         if end + 4 > available.len() {
-            // Cut short by the end of the file: keep what there is, unverified.
-            bytes.extend_from_slice(&available[start..end.min(available.len())]);
-            return Unframed {
-                bytes,
+            // Cut short by the end of the file: what there is counts, unverified.
+            return FrameCheck {
+                data_len: data_len + end.min(available.len()) - start,
                 damaged_at: None,
                 complete: false,
             };
         }
-        let data = &available[start..end];
         let stored = u32::from_le_bytes(available[end..end + 4].try_into().expect("4 bytes"));
-        if crc32fast::hash(data) != stored {
-            return Unframed {
-                bytes,
+        if crc32fast::hash(&available[start..end]) != stored {
+            return FrameCheck {
+                data_len,
                 damaged_at: Some(start),
                 complete: false,
             };
         }
-        bytes.extend_from_slice(data);
+        data_len += chunk_len;
         start = end + 4;
+    }
+    FrameCheck {
+        data_len,
+        damaged_at: None,
+        complete: available.len() == framed_total,
+    }
+}
+
+/// Reads a framed section of `framed_total` bytes of which `available` is what the file
+/// holds (a prefix when the file is truncated), copying its data out.
+pub fn unframe(available: &[u8], framed_total: usize) -> Unframed {
+    let check = check_frames(available, framed_total);
+    let mut bytes = Vec::with_capacity(check.data_len);
+    for (k, chunk) in available.chunks(CHUNK + 4).enumerate() {
+        let take = (check.data_len - k * CHUNK).min(CHUNK).min(chunk.len());
+        bytes.extend_from_slice(&chunk[..take]);
+        if bytes.len() == check.data_len {
+            break;
+        }
     }
     Unframed {
         bytes,
-        damaged_at: None,
-        complete: available.len() == framed_total,
+        damaged_at: check.damaged_at,
+        complete: check.complete,
     }
 }
 

@@ -223,7 +223,14 @@ impl BitSink for BitCounter {
 #[derive(Debug)]
 pub struct ArithmeticDecoder<'a> {
     data: &'a [u8],
+    /// Stream bytes consumed so far (zero padding included).
     pos: usize,
+    /// Stream bytes available.
+    len: usize,
+    /// Bytes to skip after every `1 << chunk_bits` stream bytes (checksums of a framed
+    /// section; 0 for a plain stream).
+    skip: usize,
+    chunk_bits: u32,
     range: u32,
     code: u32,
     complete: bool,
@@ -236,9 +243,39 @@ impl<'a> ArithmeticDecoder<'a> {
     /// stripped by the encoder, so the zero padding read past its end is genuine and
     /// [`ArithmeticDecoder::exhausted`] never becomes true.
     pub fn new(data: &'a [u8], complete: bool) -> ArithmeticDecoder<'a> {
+        ArithmeticDecoder::start(data, data.len(), 0, 0, complete)
+    }
+
+    /// Starts decoding a stream stored framed, in place: after every `chunk` stream bytes
+    /// (a power of two) `skip` bytes follow that are not part of it (a checksum). `len`
+    /// is the number of stream bytes `framed` holds; `complete` as for [`Self::new`].
+    pub fn new_framed(
+        framed: &'a [u8],
+        len: usize,
+        chunk: usize,
+        skip: usize,
+        complete: bool,
+    ) -> ArithmeticDecoder<'a> {
+        assert!(
+            chunk.is_power_of_two(),
+            "chunk size {chunk} is not a power of two"
+        );
+        ArithmeticDecoder::start(framed, len, skip, chunk.trailing_zeros(), complete)
+    }
+
+    fn start(
+        data: &'a [u8],
+        len: usize,
+        skip: usize,
+        chunk_bits: u32,
+        complete: bool,
+    ) -> ArithmeticDecoder<'a> {
         let mut decoder = ArithmeticDecoder {
             data,
             pos: 0,
+            len,
+            skip,
+            chunk_bits,
             range: u32::MAX,
             code: 0,
             complete,
@@ -251,7 +288,12 @@ impl<'a> ArithmeticDecoder<'a> {
 
     #[inline]
     fn next_byte(&mut self) -> u8 {
-        let byte = self.data.get(self.pos).copied().unwrap_or(0);
+        let byte = if self.pos < self.len {
+            let index = self.pos + self.skip * (self.pos >> self.chunk_bits);
+            self.data.get(index).copied().unwrap_or(0)
+        } else {
+            0
+        };
         self.pos += 1;
         byte
     }
@@ -261,7 +303,7 @@ impl<'a> ArithmeticDecoder<'a> {
     /// returned while this was still false is exact.
     #[inline]
     pub fn exhausted(&self) -> bool {
-        !self.complete && self.pos > self.data.len()
+        !self.complete && self.pos > self.len
     }
 
     /// Bytes of input consumed so far (may exceed the input length by the zero padding).

@@ -934,9 +934,21 @@ impl Decoder {
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Decoder {
+        let source = ArithmeticDecoder::new(payload, payload_complete);
+        Decoder::run_from(layout, source, top_plane, max_passes)
+    }
+
+    /// As [`Decoder::run`], reading the payload through `source` (e.g. a decoder over a
+    /// framed section, read in place).
+    pub fn run_from(
+        layout: &CoefficientLayout,
+        source: ArithmeticDecoder<'_>,
+        top_plane: Option<u32>,
+        max_passes: Option<u32>,
+    ) -> Decoder {
         let n_coefficients = layout.len();
         let mut side = DecoderSide {
-            source: ArithmeticDecoder::new(payload, payload_complete),
+            source,
             values: vec![0; n_coefficients],
         };
         let mut grid = FlagGrid::new(layout.width, layout.height);

@@ -1,6 +1,7 @@
 //! Whole-file encode and decode: raster → `.ezw` bytes → raster.
 
-use crate::container::{unframe, Header, Mode, Unframed};
+use crate::container::{check_frames, unframe, Header, Mode, Unframed, CHUNK};
+use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
 use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
@@ -869,12 +870,14 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     } else {
         None
     };
-    let payload_framed = section(payload_start, header.payload_len as usize);
-    if let Some(at) = payload_framed.damaged_at {
+    // The payload is read in place (no copy): its checksums are checked first.
+    let payload_framed = data.get(payload_start.min(data.len())..).unwrap_or(&[]);
+    let payload_check = check_frames(payload_framed, header.payload_len as usize);
+    if let Some(at) = payload_check.damaged_at {
         note_damage("payload", payload_start + at);
     }
     // All of the payload the encoder wrote is here, undamaged...
-    let payload_present = payload_framed.complete;
+    let payload_present = payload_check.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
     let payload_complete = payload_present && !header.payload_truncated;
     let residual_framed = section(residual_start, header.residual_len as usize);
@@ -899,16 +902,20 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let subbands = wavelet::subbands(width, height, levels);
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
     let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
-    let decoder = Decoder::run(
-        &layout,
-        &payload_framed.bytes,
+    let source = ArithmeticDecoder::new_framed(
+        payload_framed,
+        payload_check.data_len,
+        CHUNK,
+        4,
         payload_complete,
+    );
+    let decoder = Decoder::run_from(
+        &layout,
+        source,
         header.top_plane.map(u32::from),
         options.max_passes,
     );
-    // The payload copy is no longer needed: free it before the image is built.
-    let payload_data_len = payload_framed.bytes.len();
-    drop(payload_framed);
+    let payload_data_len = payload_check.data_len;
     let passes_decoded = decoder.passes_completed;
     let ezw_complete = decoder.complete && payload_complete;
     // Reconstruct in place: the coefficient buffer becomes the image, then the samples,

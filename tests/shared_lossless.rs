@@ -1,0 +1,68 @@
+//! Lossless round trip, bit-exact, of every DEM in `../shared/dem` (skipped with a notice
+//! when the folder is absent), plus the max-error guarantee at 1 m on each.
+
+use std::path::Path;
+
+use wavemesh::dem::{read_dem, ReadOptions};
+use wavemesh::report::load_manifest;
+use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality};
+
+#[test]
+fn every_shared_dem_round_trips_bit_exactly() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dem");
+    if !dir.join("manifest.json").exists() {
+        eprintln!("skipping: ../shared/dem not found");
+        return;
+    }
+    let datasets = load_manifest(&dir).unwrap();
+    assert!(!datasets.is_empty());
+    for dataset in datasets {
+        let raster = read_dem(&dataset.tif, &ReadOptions::default()).unwrap();
+        let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+        let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+        assert!(
+            decoded.complete && decoded.damage.is_none(),
+            "{}",
+            dataset.name
+        );
+        match (&raster.samples, &decoded.raster.samples) {
+            (wavemesh_codec::Samples::F32(a), wavemesh_codec::Samples::F32(b)) => {
+                assert!(
+                    a.iter()
+                        .zip(b)
+                        .all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan())),
+                    "{}",
+                    dataset.name
+                )
+            }
+            (a, b) => assert_eq!(a, b, "{} not bit-exact", dataset.name),
+        }
+        assert_eq!(
+            decoded.raster.nodata.map(f64::to_bits),
+            raster.nodata.map(f64::to_bits)
+        );
+        assert_eq!(decoded.raster.georef, raster.georef);
+
+        let e = 1.0 / dataset.metres_per_unit;
+        let bounded = encode(&raster, &EncodeOptions::new(Quality::MaxError(e), None)).unwrap();
+        let decoded = decode(&bounded.bytes, &DecodeOptions::default()).unwrap();
+        for i in 0..raster.len() {
+            if raster.is_valid(i) {
+                let err = (raster.samples.get_f64(i) - decoded.raster.samples.get_f64(i)).abs();
+                assert!(err <= e, "{}: sample {i} off by {err} > {e}", dataset.name);
+            } else {
+                assert!(
+                    !decoded.raster.is_valid(i),
+                    "{}: void {i} filled",
+                    dataset.name
+                );
+            }
+        }
+        eprintln!(
+            "{}: lossless {} bytes, max error 1 m {} bytes",
+            dataset.name,
+            encoded.bytes.len(),
+            bounded.bytes.len()
+        );
+    }
+}
