@@ -328,7 +328,8 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
     };
     // With a budget, the payload may use what the smallest possible header leaves.
     let budget = options.budget_bytes.map(|b| b as usize);
-    let fixed = header.to_bytes().len() + mask_bytes.len();
+    // The smallest file there is: header, framed mask, empty payload, empty ladder.
+    let fixed = crate::container::assembled_len(&header, mask_bytes.len(), 0, 0);
     if let Some(total) = budget {
         if total < fixed {
             return Err(CodecError::InvalidParameters(format!(
@@ -381,6 +382,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
                 }
                 break;
             }
+            // `fixed <= total` guarantees an empty payload fits, so this terminates.
             keep = keep.saturating_sub(over);
         }
         payload_bytes.truncate(keep);
