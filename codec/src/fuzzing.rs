@@ -318,6 +318,7 @@ pub fn roundtrip(data: &[u8]) {
     let mut input = Input::new(params);
     let raster = arbitrary_raster(&mut input, sample_bytes, 64);
     let (options, levels_given) = arbitrary_encode_options(&mut input, &raster);
+
     let encoded = match encode(&raster, &options) {
         Ok(encoded) => encoded,
         Err(e) => {

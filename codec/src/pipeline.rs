@@ -285,7 +285,13 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
     };
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
     let mask_bytes = if has_voids {
-        encode_mask(&mask, width)
+        let mut bytes = encode_mask(&mask, width);
+        if bytes.is_empty() {
+            // A mask of nothing but voids codes to no bytes at all (trailing zeros are
+            // dropped); one zero byte decodes the same and says that there is a mask.
+            bytes.push(0);
+        }
+        bytes
     } else {
         Vec::new()
     };
