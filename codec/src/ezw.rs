@@ -28,6 +28,7 @@
 //! coefficient with the bits it has (reconstructed mid-interval by [`Decoder::dequantise`]).
 
 use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel, BitSink};
+use crate::significance::SignificanceMap;
 use crate::wavelet::{Orientation, Subband};
 
 /// Flag bits kept per coefficient during a scan.
@@ -70,8 +71,8 @@ impl Band {
 /// The subbands of a transformed image, with the per-band shifts and parent links.
 #[derive(Debug, Clone)]
 pub struct CoefficientLayout {
-    width: usize,
-    height: usize,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
     bands: Vec<Band>,
 }
 
@@ -126,6 +127,19 @@ impl CoefficientLayout {
             height,
             bands,
         }
+    }
+
+    /// Decomposition levels (the level of the LL band).
+    pub(crate) fn levels(&self) -> u32 {
+        self.bands.first().map_or(0, |b| b.sub.level)
+    }
+
+    /// The detail subbands with their shifts.
+    pub(crate) fn detail_bands(&self) -> impl Iterator<Item = (Subband, u32)> + '_ {
+        self.bands
+            .iter()
+            .filter(|b| b.sub.orientation != Orientation::LL)
+            .map(|b| (b.sub, b.shift))
     }
 
     /// Number of coefficients (= samples).
@@ -977,6 +991,13 @@ impl Decoder {
             passes_completed,
             complete,
         }
+    }
+
+    /// The per-node significance map of what was decoded (see
+    /// [`crate::significance`]): built from the coefficients' leading bits, which are the
+    /// planes at which they became significant.
+    pub fn significance(&self, layout: &CoefficientLayout) -> SignificanceMap {
+        SignificanceMap::from_values(layout, &self.values)
     }
 
     /// Real reconstruction (9/7): every coefficient mid-interval ([`Midpoint::Real`]),

@@ -5,7 +5,8 @@
 //! `.ezw` container. No file formats and no command line live here.
 //!
 //! Pipeline, one module per stage: [`raster`] → [`quantize`] → [`wavelet`] → [`ezw`]
-//! (with [`entropy`]) → [`container`]; [`pipeline`] runs them end to end.
+//! (with [`entropy`]) → [`container`]; [`pipeline`] runs them end to end. The decoder's
+//! [`significance`] map is what the mesher builds its quadtree cells from.
 //!
 //! ```
 //! use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
@@ -28,6 +29,7 @@ pub mod pipeline;
 pub mod quantize;
 pub mod raster;
 pub mod residual;
+pub mod significance;
 pub mod wavelet;
 
 pub use container::{Header, Mode};
@@ -36,4 +38,5 @@ pub use pipeline::{
     decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
 };
 pub use raster::{Georef, Raster, SampleType, Samples};
+pub use significance::SignificanceMap;
 pub use wavelet::Wavelet;

@@ -10,6 +10,7 @@ use crate::mask::{decode_mask, encode_mask, Mask};
 use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{decode_residuals, encode_residuals};
+use crate::significance::SignificanceMap;
 use crate::wavelet::{self, Wavelet};
 use bitvec::order::Lsb0;
 use bitvec::slice::BitSlice;
@@ -696,6 +697,8 @@ pub struct DecodeOptions {
     /// Treat any damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix.
     pub strict: bool,
+    /// Also return the per-node significance map ([`Decoded::significance`]).
+    pub significance_map: bool,
 }
 
 /// A decoded stream.
@@ -713,6 +716,9 @@ pub struct Decoded {
     pub bytes_used: u64,
     /// Where the file is damaged, if it is (the decode used only what precedes it).
     pub damage: Option<Damage>,
+    /// The decoder's per-node significance map, when [`DecodeOptions::significance_map`]
+    /// asked for it.
+    pub significance: Option<SignificanceMap>,
 }
 
 /// The first damaged place of a file: a chunk whose checksum fails, or trailing garbage.
@@ -923,6 +929,9 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
         header.top_plane.map(u32::from),
         options.max_passes,
     );
+    let significance = options
+        .significance_map
+        .then(|| decoder.significance(&layout));
     let payload_data_len = payload_check.data_len;
     let passes_decoded = decoder.passes_completed;
     let ezw_complete = decoder.complete && payload_complete;
@@ -1015,5 +1024,6 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
         damage,
         bytes_used,
         header,
+        significance,
     })
 }

@@ -323,6 +323,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         max_passes: None,
         limits: args.input_args.limits(args.max_memory),
         strict: args.strict,
+        significance_map: false,
     };
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =
