@@ -5,6 +5,8 @@
 pub mod atomic;
 pub mod dem;
 pub mod fuzzing;
+pub mod lod;
 pub mod memory;
+pub mod mesh;
 pub mod metrics;
 pub mod report;

@@ -10,7 +10,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
-use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Wavelet};
+use wavemesh_codec::{
+    decode, encode, CodecError, DecodeOptions, EncodeOptions, Quality, Raster, Samples, Wavelet,
+};
 
 use crate::dem::{read_dem, ReadOptions};
 use crate::metrics::{bits_per_sample, compare};
@@ -552,4 +554,220 @@ pub fn markdown(results: &[DemResult], peers: &[PeerRow]) -> String {
         ));
     }
     out
+}
+
+/// One row of the peers' mesher results (`dev_mesh.csv`, the columns used here).
+#[derive(Debug, Clone, Deserialize)]
+pub struct MeshPeerRow {
+    /// DEM name.
+    pub dem: String,
+    /// `cropN r0=R c0=C`, `full WxH` or a padded region (not compared).
+    pub region: String,
+    /// `martini`, `delatin` or `meshopt`.
+    pub mesher: String,
+    /// The mesher's max-error parameter, data units.
+    pub param_max_error_data: f64,
+    /// Triangles of its mesh.
+    pub triangles: usize,
+    /// RMSE over the region, data units.
+    pub rmse: f64,
+    /// True max error over the region, data units.
+    pub maxerr: f64,
+}
+
+/// Reads the peers' mesher results.
+pub fn load_mesh_peers(path: &Path) -> Result<Vec<MeshPeerRow>, ReportError> {
+    let mut reader = csv::Reader::from_path(path).map_err(|e| ReportError::Input {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    reader
+        .deserialize()
+        .collect::<Result<Vec<MeshPeerRow>, _>>()
+        .map_err(|e| ReportError::Input {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
+}
+
+/// Our mesh beside one peer mesh: same region, same triangle budget.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshComparison {
+    /// DEM name.
+    pub dem: String,
+    /// The region (as the peers' CSV names it).
+    pub region: String,
+    /// The peer.
+    pub mesher: String,
+    /// The peer's max-error parameter.
+    pub peer_parameter: f64,
+    /// The peer's triangles (our budget).
+    pub peer_triangles: usize,
+    /// The peer's RMSE, data units.
+    pub peer_rmse: f64,
+    /// The peer's true max error, data units.
+    pub peer_max_error: f64,
+    /// Our mesh within that budget, searched over height tolerances.
+    pub ours_triangles: usize,
+    /// Its RMSE, data units.
+    pub ours_rmse: f64,
+    /// Its max error, data units.
+    pub ours_max_error: f64,
+    /// Our zerotree-threshold mesh within the same budget: triangles and RMSE.
+    pub zerotree_triangles: usize,
+    /// Its RMSE.
+    pub zerotree_rmse: f64,
+    /// Our mesh at the peer's parameter as a tolerance (`--mesh-error E`): triangles.
+    pub ours_at_parameter_triangles: usize,
+    /// Its max error (never above the parameter).
+    pub ours_at_parameter_max_error: f64,
+}
+
+/// The `(x0, y0, width, height)` a peer region names on a `w × h` DEM, `None` for padded
+/// regions.
+fn parse_region(region: &str, w: usize, h: usize) -> Option<(usize, usize, usize, usize)> {
+    if region.starts_with("full") {
+        return Some((0, 0, w, h));
+    }
+    let rest = region.strip_prefix("crop")?;
+    let mut parts = rest.split_whitespace();
+    let size: usize = parts.next()?.parse().ok()?;
+    let r0: usize = parts.next()?.strip_prefix("r0=")?.parse().ok()?;
+    let c0: usize = parts.next()?.strip_prefix("c0=")?.parse().ok()?;
+    (c0 + size <= w && r0 + size <= h).then_some((c0, r0, size, size))
+}
+
+/// Measures our meshes against every Martini and Delatin row of `peers` for `dataset`
+/// on the same regions (lossless stream, so the mesh is built from the original heights).
+pub fn compare_meshes(
+    dataset: &Dataset,
+    peers: &[MeshPeerRow],
+) -> Result<Vec<MeshComparison>, ReportError> {
+    use crate::lod::Surface;
+    use crate::mesh::cells::SplitRule;
+    use crate::mesh::rasterise::mesh_error;
+    use crate::mesh::{MeshTarget, Mesher};
+    let codec = |e: CodecError| ReportError::Codec {
+        dem: dataset.name.clone(),
+        message: e.to_string(),
+    };
+    let raster =
+        read_dem(&dataset.tif, &ReadOptions::default()).map_err(|e| ReportError::Input {
+            path: dataset.tif.clone(),
+            message: e.to_string(),
+        })?;
+    let mut out = Vec::new();
+    let rows: Vec<&MeshPeerRow> = peers
+        .iter()
+        .filter(|p| p.dem == dataset.name && (p.mesher == "martini" || p.mesher == "delatin"))
+        .collect();
+    let mut regions: Vec<&str> = rows.iter().map(|p| p.region.as_str()).collect();
+    regions.sort();
+    regions.dedup();
+    for region in regions {
+        let Some((x0, y0, w, h)) = parse_region(region, raster.width, raster.height) else {
+            continue;
+        };
+        let crop = crop_raster(&raster, x0, y0, w, h).map_err(codec)?;
+        let encoded = encode(&crop, &EncodeOptions::new(Quality::Lossless, None)).map_err(codec)?;
+        let options = DecodeOptions {
+            significance_map: true,
+            ..DecodeOptions::default()
+        };
+        let decoded = decode(&encoded.bytes, &options).map_err(codec)?;
+        let surface = Surface::of(&decoded.raster);
+        let map = decoded.significance.as_ref().expect("asked for");
+        let mut mesher = Mesher::new(map, surface.heights(), &surface.valid);
+        let measure = |mesh: &crate::mesh::GridMesh| {
+            mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid)
+        };
+        for peer in rows.iter().filter(|p| p.region == region) {
+            let budget = mesher.build(
+                MeshTarget::TrianglesByTolerance(peer.triangles),
+                SplitRule::Zerotree,
+                None,
+            );
+            let zerotree = mesher.build(
+                MeshTarget::Triangles(peer.triangles),
+                SplitRule::Zerotree,
+                None,
+            );
+            let at_parameter = mesher.build(
+                MeshTarget::Tolerance(peer.param_max_error_data),
+                SplitRule::Zerotree,
+                None,
+            );
+            let (b, z, a) = (
+                measure(&budget.mesh),
+                measure(&zerotree.mesh),
+                measure(&at_parameter.mesh),
+            );
+            out.push(MeshComparison {
+                dem: dataset.name.clone(),
+                region: region.to_string(),
+                mesher: peer.mesher.clone(),
+                peer_parameter: peer.param_max_error_data,
+                peer_triangles: peer.triangles,
+                peer_rmse: peer.rmse,
+                peer_max_error: peer.maxerr,
+                ours_triangles: budget.mesh.triangles.len(),
+                ours_rmse: b.rmse,
+                ours_max_error: b.max_error,
+                zerotree_triangles: zerotree.mesh.triangles.len(),
+                zerotree_rmse: z.rmse,
+                ours_at_parameter_triangles: at_parameter.mesh.triangles.len(),
+                ours_at_parameter_max_error: a.max_error,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The `w × h` window at `(x0, y0)` of `raster`.
+fn crop_raster(
+    raster: &Raster,
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+) -> Result<Raster, CodecError> {
+    let values: Vec<f64> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (y0 + y) * raster.width + x0 + x))
+        .map(|i| raster.samples.get_f64(i))
+        .collect();
+    let mut crop = Raster::new(
+        w,
+        h,
+        Samples::from_f64(raster.samples.sample_type(), &values),
+    )?;
+    crop.nodata = raster.nodata;
+    Ok(crop)
+}
+
+/// The mesh comparison as a Markdown table.
+pub fn mesh_markdown(rows: &[MeshComparison]) -> String {
+    let mut s = String::from(
+        "| DEM | region | peer | peer E | peer tris | peer RMSE | peer max err | ours tris | ours RMSE | RMSE ours/peer | ours max err | zerotree tris | zerotree RMSE | ours tris at E (max err) |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.4} | {:.3} | {:.3} | {} | {:.4} | {} ({:.3}) |\n",
+            r.dem,
+            r.region,
+            r.mesher,
+            r.peer_parameter,
+            r.peer_triangles,
+            r.peer_rmse,
+            r.peer_max_error,
+            r.ours_triangles,
+            r.ours_rmse,
+            r.ours_rmse / r.peer_rmse,
+            r.ours_max_error,
+            r.zerotree_triangles,
+            r.zerotree_rmse,
+            r.ours_at_parameter_triangles,
+            r.ours_at_parameter_max_error
+        ));
+    }
+    s
 }

@@ -10,6 +10,7 @@ use wavemesh_codec::{
     Quality, Raster,
 };
 
+use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
 use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
 
 /// Version of every JSON object the CLI prints.
@@ -76,6 +77,11 @@ pub struct DecodeArgs {
     /// decoding the undamaged prefix with a warning.
     #[arg(long)]
     strict: bool,
+    /// Also write the mesh of the decoder's zerotree (.glb, .obj or .ply).
+    #[arg(long, value_name = "MESH")]
+    mesh: Option<PathBuf>,
+    #[command(flatten)]
+    mesh_options: MeshOptions,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -293,6 +299,7 @@ struct DecodeReport<'a> {
     peak_heap_per_raster_byte: f64,
     damage: Option<DamageReport>,
     distortion: Option<Distortion>,
+    mesh: Option<MeshReport>,
 }
 
 #[derive(Serialize)]
@@ -323,8 +330,19 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         max_passes: None,
         limits: args.input_args.limits(args.max_memory),
         strict: args.strict,
-        significance_map: false,
+        significance_map: args.mesh.is_some(),
     };
+    if args.mesh.is_none() && !args.mesh_options.is_default() {
+        return Err(CliError::Usage(
+            "mesh options (--threshold, --triangles, --mesh-error, ...) need --mesh".into(),
+        ));
+    }
+    if let Some(mesh) = &args.mesh {
+        refuse_overwriting_input(&args.input, mesh)?;
+        if mesh == &args.output {
+            return Err(CliError::Usage("--mesh and -o name the same file".into()));
+        }
+    }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =
         with_progress("decoding", || timed(|| decode_stream(&data, &options)));
@@ -339,12 +357,22 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         );
     }
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
-    let distortion = match &args.reference {
+    let reference = match &args.reference {
         None => None,
-        Some(path) => {
-            let reference = args.input_args.read(path)?;
-            Some(compare_rasters(&reference, &decoded.raster, path)?)
-        }
+        Some(path) => Some(args.input_args.read(path)?),
+    };
+    let distortion = match (&args.reference, &reference) {
+        (Some(path), Some(reference)) => Some(compare_rasters(reference, &decoded.raster, path)?),
+        _ => None,
+    };
+    let mesh = match &args.mesh {
+        Some(path) => Some(mesh_decoded(
+            &decoded,
+            &args.mesh_options,
+            path,
+            reference.as_ref(),
+        )?),
+        None => None,
     };
     let raster_bytes = samples * header.sample_type.bytes() as u64;
     let report = DecodeReport {
@@ -370,6 +398,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             offset: d.offset,
         }),
         distortion,
+        mesh,
     };
     if args.json {
         print_json(&report);
@@ -389,6 +418,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         );
         if let Some(d) = &report.distortion {
             print_distortion(d);
+        }
+        if let Some(m) = &report.mesh {
+            print_mesh_summary(m);
         }
     }
     Ok(())

@@ -2,6 +2,7 @@
 
 mod coding;
 mod demo;
+mod mesh;
 mod report;
 mod verify;
 
@@ -32,6 +33,10 @@ enum Command {
     Verify(verify::VerifyArgs),
     /// Compare two DEMs: range, RMSE, PSNR, max error, valid samples.
     Compare(coding::CompareArgs),
+    /// Encode, decode and mesh a DEM in one go (.glb, .obj or .ply).
+    Mesh(mesh::MeshArgs),
+    /// The seed paper's Tables 1 and 2 (mesh and memory per threshold or bit rate).
+    Table(mesh::TableArgs),
     /// Run the bundled sample end to end and print the results table.
     Demo(demo::DemoArgs),
     /// Measure every DEM of a manifest folder beside the peer tools' results (README tables).
@@ -139,6 +144,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Info(args) => coding::info(&args),
         Command::Verify(args) => verify::run(&args),
         Command::Compare(args) => coding::compare(&args),
+        Command::Mesh(args) => mesh::mesh(&args),
+        Command::Table(args) => mesh::table(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
     }

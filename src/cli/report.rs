@@ -27,11 +27,18 @@ pub struct ReportArgs {
     /// `<!-- report:end -->` (the README's comparison section).
     #[arg(long, value_name = "FILE")]
     readme: Option<PathBuf>,
+    /// Compare meshes instead: ours beside Martini and Delatin at their triangle counts,
+    /// from the peers' dev_mesh.csv (default: DEM_DIR/../peers/results/dev_mesh.csv).
+    #[arg(long, conflicts_with = "readme")]
+    meshes: bool,
 }
 
 pub fn run(args: &ReportArgs) -> Result<(), CliError> {
     let to_cli = |e: report::ReportError| CliError::Usage(e.to_string());
     let datasets = report::load_manifest(&args.dem_dir).map_err(to_cli)?;
+    if args.meshes {
+        return meshes(args, &datasets);
+    }
     let peers_path = args
         .peers
         .clone()
@@ -65,6 +72,37 @@ pub fn run(args: &ReportArgs) -> Result<(), CliError> {
 }
 
 /// Replaces what lies between the report markers of `path` with `tables`.
+/// `report --meshes`.
+fn meshes(args: &ReportArgs, datasets: &[report::Dataset]) -> Result<(), CliError> {
+    let to_cli = |e: report::ReportError| CliError::Usage(e.to_string());
+    let path = args
+        .peers
+        .clone()
+        .unwrap_or_else(|| args.dem_dir.join("../peers/results/dev_mesh.csv"));
+    let peers = report::load_mesh_peers(&path).map_err(to_cli)?;
+    let mut rows = Vec::new();
+    for dataset in datasets
+        .iter()
+        .filter(|d| args.only.is_empty() || args.only.contains(&d.name))
+    {
+        let found = with_progress(&format!("meshing {}", dataset.name), || {
+            report::compare_meshes(dataset, &peers)
+        });
+        rows.extend(found.map_err(to_cli)?);
+    }
+    if args.json {
+        let value = serde_json::json!({
+            "schema_version": SCHEMA_VERSION,
+            "command": "report",
+            "meshes": rows,
+        });
+        println!("{value}");
+    } else {
+        print!("{}", report::mesh_markdown(&rows));
+    }
+    Ok(())
+}
+
 fn splice_into(path: &std::path::Path, tables: &str) -> Result<(), CliError> {
     const BEGIN: &str = "<!-- report:begin -->";
     const END: &str = "<!-- report:end -->";

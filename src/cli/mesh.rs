@@ -1,0 +1,474 @@
+//! `mesh` (encode + decode + mesh in one go), the mesh half of `decode --mesh`, and
+//! `table` (the seed paper's Tables 1 and 2).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::ValueEnum;
+use serde::Serialize;
+use wavemesh::lod::{self, build_mesh, decoded_plane, plane_of_threshold, Surface, TableRows};
+use wavemesh::mesh::cells::SplitRule;
+use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
+use wavemesh::mesh::rasterise::{mesh_error, MeshError};
+use wavemesh::mesh::MeshTarget;
+use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
+
+use super::coding::SCHEMA_VERSION;
+use super::{timed, with_progress, CliError, InputArgs};
+
+/// Which coefficients split a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RuleArg {
+    /// The node or any descendant significant (no zerotree root).
+    Zerotree,
+    /// One of the node's own coefficients significant (the seed paper's literal rule).
+    Own,
+}
+
+/// How `--triangles` searches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SearchArg {
+    /// Over the zerotree thresholds of the significance map.
+    Threshold,
+    /// Over height tolerances (error pyramid).
+    Error,
+}
+
+/// Output x/y units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum XyArg {
+    /// Georeferenced x/y (pixel centres through the geotransform; pixel units without one).
+    Geo,
+    /// x = column, y = row of the grid, z = stored value × z-scale.
+    Pixel,
+}
+
+/// The mesh options shared by `mesh` and `decode --mesh`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MeshOptions {
+    /// Zerotree threshold T: cells split where a coefficient reaches T (rounded down to a
+    /// power of two, a pass of the stream). Default: the decoder's threshold. With
+    /// --mesh-error, the partition the tolerance refines.
+    #[arg(long, value_name = "T", conflicts_with = "triangles")]
+    threshold: Option<f64>,
+    /// Largest mesh with at most N triangles (searched as --search says).
+    #[arg(long, value_name = "N", conflicts_with = "mesh_error")]
+    triangles: Option<usize>,
+    /// Keep every sample of the heights the mesh is built from within E data units of it.
+    #[arg(long, value_name = "E")]
+    mesh_error: Option<f64>,
+    /// What --triangles searches over.
+    #[arg(long, value_enum, default_value = "error")]
+    search: SearchArg,
+    /// Which coefficients split a cell at a threshold.
+    #[arg(long, value_enum, default_value = "zerotree")]
+    rule: RuleArg,
+    /// x/y units of the mesh file.
+    #[arg(long, value_enum, default_value = "geo")]
+    xy: XyArg,
+    /// Multiply heights by this (e.g. 0.1 for decimetre DEMs).
+    #[arg(long, default_value_t = 1.0)]
+    z_scale: f64,
+}
+
+impl MeshOptions {
+    /// Whether every option has its default (none was given).
+    pub fn is_default(&self) -> bool {
+        self.threshold.is_none()
+            && self.triangles.is_none()
+            && self.mesh_error.is_none()
+            && self.search == SearchArg::Error
+            && self.rule == RuleArg::Zerotree
+            && self.xy == XyArg::Geo
+            && self.z_scale == 1.0
+    }
+
+    fn rule(&self) -> SplitRule {
+        match self.rule {
+            RuleArg::Zerotree => SplitRule::Zerotree,
+            RuleArg::Own => SplitRule::OwnCoefficients,
+        }
+    }
+
+    /// The target and the base plane for a stream decoded to `decoded_plane`.
+    fn target(&self, decoded_plane: u32) -> Result<(MeshTarget, Option<u32>), CliError> {
+        if !(self.z_scale.is_finite() && self.z_scale != 0.0) {
+            return Err(CliError::Usage(format!(
+                "--z-scale must be finite and non-zero, got {}",
+                self.z_scale
+            )));
+        }
+        let threshold_plane = match self.threshold {
+            Some(t) if t.is_finite() && t >= 0.0 => Some(plane_of_threshold(t).max(decoded_plane)),
+            Some(t) => {
+                return Err(CliError::Usage(format!(
+                    "--threshold must be a non-negative number, got {t}"
+                )))
+            }
+            None => None,
+        };
+        if let Some(e) = self.mesh_error {
+            if !(e.is_finite() && e >= 0.0) {
+                return Err(CliError::Usage(format!(
+                    "--mesh-error must be a non-negative number, got {e}"
+                )));
+            }
+            return Ok((MeshTarget::Tolerance(e), threshold_plane));
+        }
+        if let Some(n) = self.triangles {
+            return Ok(match self.search {
+                SearchArg::Threshold => (MeshTarget::Triangles(n), None),
+                SearchArg::Error => (MeshTarget::TrianglesByTolerance(n), None),
+            });
+        }
+        Ok((
+            MeshTarget::Plane(threshold_plane.unwrap_or(decoded_plane)),
+            None,
+        ))
+    }
+
+    fn placement(&self, raster: &Raster) -> Placement {
+        match self.xy {
+            XyArg::Pixel => Placement::pixel(self.z_scale),
+            XyArg::Geo => match &raster.georef {
+                Some(g) => Placement::georeferenced(g.geotransform, self.z_scale),
+                None => Placement {
+                    z_scale: self.z_scale,
+                    ..Placement::default()
+                },
+            },
+        }
+    }
+}
+
+/// The mesh part of a JSON report.
+#[derive(Debug, Serialize)]
+pub struct MeshReport {
+    output: PathBuf,
+    format: &'static str,
+    rule: &'static str,
+    plane: Option<u32>,
+    threshold: Option<f64>,
+    tolerance: Option<f64>,
+    triangles: usize,
+    vertices: usize,
+    cells: usize,
+    refinement_splits: usize,
+    remaining_percent: f64,
+    xy_units: &'static str,
+    /// Against the heights the mesh is built from (the decoded DEM).
+    error_vs_decoded: MeshError,
+    /// Against the original DEM (`--reference`, or the input of `mesh`).
+    error_vs_original: Option<MeshError>,
+    mesh_bytes_in_memory: usize,
+    mesh_bytes_paper: f64,
+    pyramid_seconds: f64,
+    mesh_seconds: f64,
+    mesh_triangles_per_second: f64,
+    mesh_peak_heap_bytes: usize,
+    measure_seconds: f64,
+    write_seconds: f64,
+    file_bytes: u64,
+}
+
+/// Meshes a decode (made with the significance map) and writes the mesh to `path`.
+pub fn mesh_decoded(
+    decoded: &Decoded,
+    options: &MeshOptions,
+    path: &Path,
+    original: Option<&Raster>,
+) -> Result<MeshReport, CliError> {
+    let format = MeshFormat::from_path(path).ok_or_else(|| {
+        CliError::Usage(format!(
+            "{}: unknown mesh format (use .glb, .obj or .ply)",
+            path.display()
+        ))
+    })?;
+    if path.is_dir() {
+        return Err(CliError::Output(
+            path.to_path_buf(),
+            "is a directory".into(),
+        ));
+    }
+    let map = decoded
+        .significance
+        .as_ref()
+        .expect("decoded with the significance map");
+    let (target, base_plane) = options.target(decoded_plane(decoded))?;
+    let surface = Surface::of(&decoded.raster);
+    let timed_mesh = with_progress("meshing", || {
+        build_mesh(map, &surface, target, options.rule(), base_plane)
+    });
+    let mesh = &timed_mesh.mesh;
+    let start = Instant::now();
+    let error_vs_decoded = mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid);
+    let error_vs_original = original.map(|o| {
+        let reference = Surface::of(o);
+        mesh_error(mesh, &surface.heights, &reference.heights, &reference.valid)
+    });
+    let measure_seconds = start.elapsed().as_secs_f64();
+    let placement = options.placement(&decoded.raster);
+    let start = Instant::now();
+    write_mesh(path, mesh, &surface.heights, &placement, format)
+        .map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))?;
+    let write_seconds = start.elapsed().as_secs_f64();
+    let full = 2 * surface.width.saturating_sub(1) * surface.height.saturating_sub(1);
+    Ok(MeshReport {
+        output: path.to_path_buf(),
+        format: format.name(),
+        rule: match options.rule {
+            RuleArg::Zerotree => "zerotree",
+            RuleArg::Own => "own",
+        },
+        plane: timed_mesh.plane,
+        threshold: timed_mesh.plane.map(|p| 2f64.powi(p as i32)),
+        tolerance: timed_mesh.tolerance,
+        triangles: mesh.triangles.len(),
+        vertices: mesh.vertices.len(),
+        cells: timed_mesh.cells,
+        refinement_splits: timed_mesh.refinement_splits,
+        remaining_percent: 100.0 * mesh.triangles.len() as f64 / full.max(1) as f64,
+        xy_units: if placement.xy_fallback() || options.xy == XyArg::Pixel {
+            "pixel"
+        } else {
+            "georeferenced"
+        },
+        error_vs_decoded,
+        error_vs_original,
+        mesh_bytes_in_memory: mesh.heap_bytes(),
+        mesh_bytes_paper: lod::paper_mesh_bytes(mesh.triangles.len(), mesh.vertices.len()),
+        pyramid_seconds: timed_mesh.pyramid_seconds,
+        mesh_seconds: timed_mesh.mesh_seconds,
+        mesh_triangles_per_second: mesh.triangles.len() as f64 / timed_mesh.mesh_seconds.max(1e-9),
+        mesh_peak_heap_bytes: timed_mesh.peak_heap_bytes,
+        measure_seconds,
+        write_seconds,
+        file_bytes: std::fs::metadata(path).map_or(0, |m| m.len()),
+    })
+}
+
+/// One line summarising a mesh report.
+pub fn print_mesh_summary(report: &MeshReport) {
+    let what = match (report.plane, report.tolerance) {
+        (_, Some(e)) => format!("tolerance {e}"),
+        (Some(p), None) => format!("threshold 2^{p}"),
+        (None, None) => String::new(),
+    };
+    println!(
+        "mesh {} ({}, {}): {} triangles, {} vertices ({:.2} % of the grid's), {:.3} s",
+        report.output.display(),
+        report.format,
+        what,
+        report.triangles,
+        report.vertices,
+        report.remaining_percent,
+        report.mesh_seconds + report.pyramid_seconds
+    );
+    let e = &report.error_vs_decoded;
+    println!(
+        "  vs decoded DEM:  RMSE {:.4}  PSNR {:.2} dB  max error {:.4}",
+        e.rmse, e.psnr_db, e.max_error
+    );
+    if let Some(e) = &report.error_vs_original {
+        println!(
+            "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}",
+            e.rmse, e.psnr_db, e.max_error
+        );
+    }
+}
+
+#[derive(Debug, clap::Args)]
+pub struct MeshArgs {
+    /// Input DEM.
+    input: PathBuf,
+    /// Output mesh (.glb, .obj or .ply).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Encode lossy (9/7) at this many bits per sample before meshing (default lossless).
+    #[arg(long)]
+    bpp: Option<f64>,
+    #[command(flatten)]
+    mesh: MeshOptions,
+    /// Print one JSON object on stdout instead of text.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Serialize)]
+struct MeshCommandReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    width: usize,
+    height: usize,
+    ezw_bytes: u64,
+    bpp: f64,
+    encode_seconds: f64,
+    decode_seconds: f64,
+    decode_peak_heap_bytes: usize,
+    mesh: MeshReport,
+}
+
+pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
+    if args.input == args.output {
+        return Err(CliError::Usage(
+            "the output would overwrite the input".into(),
+        ));
+    }
+    let raster = args.input_args.read(&args.input)?;
+    let budget = match args.bpp {
+        Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
+            Some((bpp * raster.len() as f64 / 8.0).floor() as u64)
+        }
+        Some(bpp) => {
+            return Err(CliError::Usage(format!(
+                "--bpp must be positive, got {bpp}"
+            )))
+        }
+        None => None,
+    };
+    let options = EncodeOptions::new(Quality::Lossless, budget);
+    let (encoded, encode_seconds, _) =
+        with_progress("encoding", || timed(|| encode(&raster, &options)));
+    let encoded = encoded.map_err(CliError::Encode)?;
+    let decode_options = DecodeOptions {
+        significance_map: true,
+        ..DecodeOptions::default()
+    };
+    let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
+        timed(|| decode(&encoded.bytes, &decode_options))
+    });
+    let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let mesh = mesh_decoded(&decoded, &args.mesh, &args.output, Some(&raster))?;
+    let report = MeshCommandReport {
+        schema_version: SCHEMA_VERSION,
+        command: "mesh",
+        input: &args.input,
+        width: raster.width,
+        height: raster.height,
+        ezw_bytes: encoded.bytes.len() as u64,
+        bpp: wavemesh::metrics::bits_per_sample(
+            encoded.bytes.len() as u64,
+            raster.width,
+            raster.height,
+        ),
+        encode_seconds,
+        decode_seconds,
+        decode_peak_heap_bytes: decode_peak,
+        mesh,
+    };
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("reports serialise")
+        );
+    } else {
+        println!(
+            "{}: {}x{}, {} bytes = {:.4} bpp (encode {:.3} s, decode {:.3} s)",
+            args.input.display(),
+            report.width,
+            report.height,
+            report.ezw_bytes,
+            report.bpp,
+            encode_seconds,
+            decode_seconds
+        );
+        print_mesh_summary(&report.mesh);
+    }
+    Ok(())
+}
+
+/// Output format of `table`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TableFormat {
+    /// Markdown tables.
+    Md,
+    /// Comma-separated values, one line per row.
+    Csv,
+    /// One JSON object.
+    Json,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct TableArgs {
+    /// Input DEM.
+    input: PathBuf,
+    /// Comma-separated thresholds (rounded down to powers of two); default: every pass.
+    #[arg(long, value_delimiter = ',', conflicts_with = "bpp")]
+    thresholds: Option<Vec<f64>>,
+    /// Comma-separated bit rates: rows are prefixes of one lossless stream.
+    #[arg(long, value_delimiter = ',')]
+    bpp: Option<Vec<f64>>,
+    /// Which coefficients split a cell.
+    #[arg(long, value_enum, default_value = "zerotree")]
+    rule: RuleArg,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "md")]
+    format: TableFormat,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Serialize)]
+struct TableReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    width: usize,
+    height: usize,
+    ezw_bytes: u64,
+    rows: Vec<lod::TableRow>,
+}
+
+pub fn table(args: &TableArgs) -> Result<(), CliError> {
+    let raster = args.input_args.read(&args.input)?;
+    let rows = match (&args.thresholds, &args.bpp) {
+        (Some(ts), _) => {
+            if let Some(t) = ts.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+                return Err(CliError::Usage(format!("bad threshold {t}")));
+            }
+            TableRows::Thresholds(ts.clone())
+        }
+        (None, Some(rates)) => {
+            if let Some(r) = rates.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
+                return Err(CliError::Usage(format!("bad bit rate {r}")));
+            }
+            TableRows::BitRates(rates.clone())
+        }
+        (None, None) => TableRows::AllPasses,
+    };
+    let encoded = with_progress("encoding", || {
+        encode(&raster, &EncodeOptions::new(Quality::Lossless, None))
+    })
+    .map_err(CliError::Encode)?;
+    let rule = match args.rule {
+        RuleArg::Zerotree => SplitRule::Zerotree,
+        RuleArg::Own => SplitRule::OwnCoefficients,
+    };
+    let table = with_progress("measuring", || {
+        lod::paper_table(&raster, &encoded, &rows, rule)
+    })
+    .map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    match args.format {
+        TableFormat::Md => print!("{}", lod::table_markdown(&table)),
+        TableFormat::Csv => print!("{}", lod::table_csv(&table)),
+        TableFormat::Json => {
+            let report = TableReport {
+                schema_version: SCHEMA_VERSION,
+                command: "table",
+                input: &args.input,
+                width: raster.width,
+                height: raster.height,
+                ezw_bytes: encoded.bytes.len() as u64,
+                rows: table,
+            };
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report).expect("reports serialise")
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,269 @@
+//! Which quadtree nodes split: the cell partition of the grid.
+//!
+//! Starting from the roots (the nodes of the coarsest level), a node splits into its four
+//! children when the split test says so, down to single grid cells. The tests come from
+//! the decoder's [`SignificanceMap`] (zerotree or own-coefficient rule at a threshold), an
+//! [`ErrorPyramid`] (a height tolerance), or both; nodes touching nodata always split, and
+//! level-0 cells touching nodata are left out.
+//!
+//! The partition keeps one split bit per node, so a cell's neighbour at any level is found
+//! in constant time: that is what [`crate::mesh::triangulate`] needs to put the vertices
+//! of smaller neighbours on a cell's edges.
+
+use bitvec::prelude::*;
+use wavemesh_codec::significance::nodes_along;
+use wavemesh_codec::SignificanceMap;
+
+use super::pyramid::{node_bounds, ErrorPyramid, VoidPyramid};
+
+/// Which coefficients decide that a node splits at a threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SplitRule {
+    /// The node is no zerotree root: it or a descendant is significant (the default).
+    #[default]
+    Zerotree,
+    /// One of the node's own three coefficients is significant (Yu, Lee & Ra's literal
+    /// rule; a node's significant descendants count only if the node itself splits).
+    OwnCoefficients,
+}
+
+/// One leaf of the partition: node `(level, i, j)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Cell {
+    /// Quadtree level: the cell spans `2^level` grid cells a side (less at the far edges).
+    pub level: u32,
+    /// Column of the node at its level.
+    pub i: usize,
+    /// Row of the node at its level.
+    pub j: usize,
+}
+
+/// A quadtree partition of a grid into cells.
+#[derive(Debug, Clone)]
+pub struct CellTree {
+    width: usize,
+    height: usize,
+    levels: u32,
+    /// Split bit of every node, index `m − 1` for level `m`.
+    split: Vec<BitVec<u64, Lsb0>>,
+    /// The leaves, void level-0 cells excluded, in depth-first order.
+    leaves: Vec<Cell>,
+    /// Nodes visited to find the leaves.
+    visited: usize,
+}
+
+impl CellTree {
+    /// The partition in which node `(m, i, j)` splits when `test(m, i, j)` holds (asked
+    /// only of nodes whose parent split, with `m ≥ 1`) or when it touches nodata.
+    pub fn build(
+        width: usize,
+        height: usize,
+        levels: u32,
+        voids: Option<&VoidPyramid>,
+        test: impl FnMut(u32, usize, usize) -> bool,
+    ) -> CellTree {
+        let split = (1..=levels)
+            .map(|m| bitvec![u64, Lsb0; 0; nodes_along(width, m) * nodes_along(height, m)])
+            .collect();
+        let mut tree = CellTree {
+            width,
+            height,
+            levels,
+            split,
+            leaves: Vec::new(),
+            visited: 0,
+        };
+        tree.grow(voids, test);
+        tree
+    }
+
+    /// The zerotree partition at threshold `2^plane` (global bit-plane of the passes):
+    /// a node splits when `rule` finds a coefficient significant at that plane or above.
+    pub fn from_significance(
+        map: &SignificanceMap,
+        plane: u32,
+        rule: SplitRule,
+        voids: Option<&VoidPyramid>,
+    ) -> CellTree {
+        CellTree::build(map.width(), map.height(), map.levels(), voids, |m, i, j| {
+            significant(map, plane, rule, m, i, j)
+        })
+    }
+
+    /// Re-runs the descent from the roots: nodes already split stay split, leaves split
+    /// when `test` or a void says so. Used to refine a partition.
+    pub fn grow(
+        &mut self,
+        voids: Option<&VoidPyramid>,
+        mut test: impl FnMut(u32, usize, usize) -> bool,
+    ) {
+        self.leaves.clear();
+        self.visited = 0;
+        let (rw, rh) = self.nodes(self.levels);
+        let mut stack: Vec<Cell> = Vec::with_capacity(4 * self.levels as usize + 4);
+        for j in (0..rh).rev() {
+            for i in (0..rw).rev() {
+                stack.push(Cell {
+                    level: self.levels,
+                    i,
+                    j,
+                });
+            }
+        }
+        while let Some(cell) = stack.pop() {
+            self.visited += 1;
+            let Cell { level, i, j } = cell;
+            let void = voids.is_some_and(|v| v.is_void(level, i, j));
+            if level == 0 {
+                if !void {
+                    self.leaves.push(cell);
+                }
+                continue;
+            }
+            let k = self.node_index(level, i, j);
+            if !(self.split[level as usize - 1][k] || void || test(level, i, j)) {
+                self.leaves.push(cell);
+                continue;
+            }
+            self.split[level as usize - 1].set(k, true);
+            let (cw, ch) = self.nodes(level - 1);
+            for (a, b) in [(1, 1), (0, 1), (1, 0), (0, 0)] {
+                let (ci, cj) = (2 * i + a, 2 * j + b);
+                if ci < cw && cj < ch {
+                    stack.push(Cell {
+                        level: level - 1,
+                        i: ci,
+                        j: cj,
+                    });
+                }
+            }
+        }
+    }
+
+    /// Splits leaf `cell` (its children are leaves until the next [`CellTree::grow`]).
+    pub fn force_split(&mut self, cell: Cell) {
+        if cell.level > 0 {
+            let k = self.node_index(cell.level, cell.i, cell.j);
+            self.split[cell.level as usize - 1].set(k, true);
+        }
+    }
+
+    #[inline]
+    fn node_index(&self, level: u32, i: usize, j: usize) -> usize {
+        j * nodes_along(self.width, level) + i
+    }
+
+    /// Nodes per row and column at `level`.
+    pub fn nodes(&self, level: u32) -> (usize, usize) {
+        (
+            nodes_along(self.width, level),
+            nodes_along(self.height, level),
+        )
+    }
+
+    /// Whether node `(level, i, j)` exists and split (level-0 nodes never do).
+    #[inline]
+    pub fn is_split(&self, level: u32, i: usize, j: usize) -> bool {
+        if level == 0 || level > self.levels {
+            return false;
+        }
+        let nw = nodes_along(self.width, level);
+        i < nw && j < nodes_along(self.height, level) && self.split[level as usize - 1][j * nw + i]
+    }
+
+    /// The leaves (void grid cells excluded), depth first.
+    pub fn leaves(&self) -> &[Cell] {
+        &self.leaves
+    }
+
+    /// Nodes the last descent visited (the search cost).
+    pub fn visited(&self) -> usize {
+        self.visited
+    }
+
+    /// Grid size.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Coarsest level (the roots').
+    pub fn levels(&self) -> u32 {
+        self.levels
+    }
+
+    /// Closed sample range `(x0, y0, x1, y1)` of `cell`.
+    #[inline]
+    pub fn bounds(&self, cell: Cell) -> (usize, usize, usize, usize) {
+        node_bounds(self.width, self.height, cell.level, cell.i, cell.j)
+    }
+
+    /// Bytes the partition holds (split bits and leaves).
+    pub fn heap_bytes(&self) -> usize {
+        self.split.iter().map(|b| b.capacity() / 8).sum::<usize>()
+            + self.leaves.capacity() * std::mem::size_of::<Cell>()
+    }
+}
+
+/// Whether node `(m, i, j)` splits at `plane` under `rule`.
+#[inline]
+pub fn significant(
+    map: &SignificanceMap,
+    plane: u32,
+    rule: SplitRule,
+    m: u32,
+    i: usize,
+    j: usize,
+) -> bool {
+    let value = match rule {
+        SplitRule::Zerotree => map.subtree_plane(m, i, j),
+        SplitRule::OwnCoefficients => map.own_plane(m, i, j),
+    };
+    u32::from(value) > plane
+}
+
+/// The split test of a height tolerance: neither of the node's shapes is within it.
+#[inline]
+pub fn too_rough(errors: &ErrorPyramid, tolerance: f64, m: u32, i: usize, j: usize) -> bool {
+    f64::from(errors.error(m, i, j)) > tolerance
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leaves_tile_the_grid() {
+        for (w, h, levels) in [(9, 9, 3), (10, 7, 2), (2, 2, 0), (33, 5, 4), (1, 5, 1)] {
+            let mut seed = (w * 31 + h) as u64;
+            let tree = CellTree::build(w, h, levels, None, |_, _, _| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+                seed >> 62 != 0
+            });
+            let mut covered = vec![0u32; w.saturating_sub(1) * h.saturating_sub(1)];
+            for &cell in tree.leaves() {
+                let (x0, y0, x1, y1) = tree.bounds(cell);
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        covered[y * (w - 1) + x] += 1;
+                    }
+                }
+            }
+            assert!(covered.iter().all(|&c| c == 1), "{w}x{h}");
+        }
+    }
+
+    #[test]
+    fn split_nodes_have_split_parents() {
+        let tree = CellTree::build(17, 17, 4, None, |m, i, _| m > 2 || i % 2 == 0);
+        for m in 1..4 {
+            let (nw, nh) = tree.nodes(m);
+            for j in 0..nh {
+                for i in 0..nw {
+                    if tree.is_split(m, i, j) {
+                        assert!(tree.is_split(m + 1, i / 2, j / 2));
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,369 @@
+//! Per-node summaries computed once beside the significance map: which nodes touch a
+//! nodata sample, and how far each node's cell, drawn as two triangles or as a fan from
+//! its centre, misses the heights it covers.
+//!
+//! Nodes are those of [`wavemesh_codec::significance`]: node `(m, i, j)` is the cell with
+//! corner samples `i·2^m ..= (i+1)·2^m` by `j·2^m ..= (j+1)·2^m`, clipped to the grid.
+
+use bitvec::prelude::*;
+use wavemesh_codec::significance::nodes_along;
+
+use super::rasterise::rasterise_triangle;
+
+/// The closed sample range `(x0, y0, x1, y1)` of node `(level, i, j)` on a
+/// `width × height` grid.
+#[inline]
+pub fn node_bounds(
+    width: usize,
+    height: usize,
+    level: u32,
+    i: usize,
+    j: usize,
+) -> (usize, usize, usize, usize) {
+    let x0 = i << level;
+    let y0 = j << level;
+    (
+        x0,
+        y0,
+        ((i + 1) << level).min(width - 1),
+        ((j + 1) << level).min(height - 1),
+    )
+}
+
+/// Which diagonal splits a cell into its two triangles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Diagonal {
+    /// From the top-left corner to the bottom-right one.
+    Falling,
+    /// From the top-right corner to the bottom-left one.
+    Rising,
+}
+
+/// Heights of a grid with the helpers the mesher needs.
+#[derive(Debug, Clone, Copy)]
+pub struct Heights<'a> {
+    /// Samples per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `width × height` heights, row-major (any value at nodata samples).
+    pub values: &'a [f64],
+}
+
+impl Heights<'_> {
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> f64 {
+        self.values[y * self.width + x]
+    }
+
+    /// Height at (x, y) of cell `(x0, y0, x1, y1)` drawn as two triangles split along
+    /// `diagonal` (x, y inside the cell).
+    #[inline]
+    pub fn interpolate(
+        &self,
+        (x0, y0, x1, y1): (usize, usize, usize, usize),
+        diagonal: Diagonal,
+        x: usize,
+        y: usize,
+    ) -> f64 {
+        let (tl, tr) = (self.at(x0, y0), self.at(x1, y0));
+        let (bl, br) = (self.at(x0, y1), self.at(x1, y1));
+        let u = (x - x0) as f64 / (x1 - x0) as f64;
+        let v = (y - y0) as f64 / (y1 - y0) as f64;
+        match diagonal {
+            Diagonal::Falling if u >= v => tl + u * (tr - tl) + v * (br - tr),
+            Diagonal::Falling => tl + v * (bl - tl) + u * (br - bl),
+            Diagonal::Rising if u + v <= 1.0 => tl + u * (tr - tl) + v * (bl - tl),
+            Diagonal::Rising => br + (1.0 - u) * (bl - br) + (1.0 - v) * (tr - br),
+        }
+    }
+
+    /// The diagonal of cell `bounds` whose interpolation at the cell's centre sample is
+    /// closer to that sample's height (the falling one on a tie).
+    pub fn diagonal(&self, bounds: (usize, usize, usize, usize)) -> Diagonal {
+        let (x0, y0, x1, y1) = bounds;
+        let (cx, cy) = ((x0 + x1) / 2, (y0 + y1) / 2);
+        let h = self.at(cx, cy);
+        let falling = (self.interpolate(bounds, Diagonal::Falling, cx, cy) - h).abs();
+        let rising = (self.interpolate(bounds, Diagonal::Rising, cx, cy) - h).abs();
+        if rising < falling {
+            Diagonal::Rising
+        } else {
+            Diagonal::Falling
+        }
+    }
+
+    /// Largest |height − interpolation| over the samples of cell `bounds` drawn as four
+    /// triangles fanned from its centre sample; `None` when the cell is too thin to have
+    /// a centre strictly inside.
+    pub fn fan_error(&self, bounds: (usize, usize, usize, usize)) -> Option<f64> {
+        let (x0, y0, x1, y1) = bounds;
+        if x1 - x0 < 2 || y1 - y0 < 2 {
+            return None;
+        }
+        let (cx, cy) = ((x0 + x1) / 2, (y0 + y1) / 2);
+        let corner = |x: usize, y: usize| (x, y, self.at(x, y));
+        let ring = [
+            corner(x0, y0),
+            corner(x1, y0),
+            corner(x1, y1),
+            corner(x0, y1),
+        ];
+        let mut worst = 0.0f64;
+        for k in 0..4 {
+            rasterise_triangle(
+                self.width,
+                [corner(cx, cy), ring[k], ring[(k + 1) % 4]],
+                |s, z| worst = worst.max((z - self.values[s]).abs()),
+            );
+        }
+        Some(worst)
+    }
+
+    /// Largest |height − two-triangle interpolation| over the samples of cell `bounds`.
+    pub fn cell_error(&self, bounds: (usize, usize, usize, usize), diagonal: Diagonal) -> f64 {
+        let (x0, y0, x1, y1) = bounds;
+        let mut worst = 0.0f64;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let e = (self.interpolate(bounds, diagonal, x, y) - self.at(x, y)).abs();
+                worst = worst.max(e);
+            }
+        }
+        worst
+    }
+}
+
+/// For every node, whether its closed sample range holds a nodata sample: such nodes
+/// always split, and void level-0 cells are left out of the mesh.
+#[derive(Debug, Clone)]
+pub struct VoidPyramid {
+    width: usize,
+    height: usize,
+    /// Index `m` for level `m` (0 = grid cells).
+    levels: Vec<BitVec<u64, Lsb0>>,
+}
+
+impl VoidPyramid {
+    /// Builds the pyramid up to `levels` from the validity of every sample; `None` when
+    /// every sample is valid.
+    pub fn new(
+        width: usize,
+        height: usize,
+        levels: u32,
+        valid: &BitSlice<u64, Lsb0>,
+    ) -> Option<VoidPyramid> {
+        if valid.all() {
+            return None;
+        }
+        let (cw, ch) = (nodes_along(width, 0), nodes_along(height, 0));
+        let mut cells = bitvec![u64, Lsb0; 0; cw * ch];
+        for y in 0..ch {
+            for x in 0..cw {
+                let s = y * width + x;
+                let void = !(valid[s] && valid[s + 1] && valid[s + width] && valid[s + width + 1]);
+                cells.set(y * cw + x, void);
+            }
+        }
+        let mut pyramid = vec![cells];
+        for m in 1..=levels {
+            let (nw, nh) = (nodes_along(width, m), nodes_along(height, m));
+            let (cw, ch) = (nodes_along(width, m - 1), nodes_along(height, m - 1));
+            let children = &pyramid[m as usize - 1];
+            let mut nodes = bitvec![u64, Lsb0; 0; nw * nh];
+            for cy in 0..ch {
+                for cx in 0..cw {
+                    if children[cy * cw + cx] {
+                        nodes.set((cy / 2) * nw + cx / 2, true);
+                    }
+                }
+            }
+            pyramid.push(nodes);
+        }
+        Some(VoidPyramid {
+            width,
+            height,
+            levels: pyramid,
+        })
+    }
+
+    /// Whether node `(level, i, j)` touches a nodata sample.
+    #[inline]
+    pub fn is_void(&self, level: u32, i: usize, j: usize) -> bool {
+        let nw = nodes_along(self.width, level);
+        self.levels[level as usize][j * nw + i]
+    }
+
+    /// Grid size the pyramid describes.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+}
+
+/// How a leaf cell is cut into triangles (before its hanging vertices are added).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// Two triangles split along a diagonal.
+    Two(Diagonal),
+    /// Four triangles fanned from the cell's centre sample (cells at least two samples
+    /// wide and high).
+    Fan,
+}
+
+/// For every node of levels `1..=levels`, how far its cell misses the heights it covers
+/// when drawn as two triangles (along the better diagonal) and as a fan from its centre:
+/// a node within a tolerance `E` in either shape needs no split.
+#[derive(Debug, Clone)]
+pub struct ErrorPyramid {
+    width: usize,
+    /// Index `m − 1` for level `m`: per node (two-triangle error, fan error).
+    levels: Vec<Vec<(f32, f32)>>,
+    /// Per level, per node: whether the two triangles use the rising diagonal.
+    rising: Vec<BitVec<u64, Lsb0>>,
+}
+
+/// `e` rounded up to an `f32`, so that a stored value ≤ E proves the error ≤ E.
+fn round_up(e: f64) -> f32 {
+    let e32 = e as f32;
+    if (e32 as f64) < e {
+        e32.next_up()
+    } else {
+        e32
+    }
+}
+
+impl ErrorPyramid {
+    /// Measures every node's cell against `heights` (void nodes get infinite errors).
+    pub fn new(heights: Heights<'_>, levels: u32, voids: Option<&VoidPyramid>) -> ErrorPyramid {
+        let (width, height) = (heights.width, heights.height);
+        let mut pyramid = Vec::with_capacity(levels as usize);
+        let mut diagonals = Vec::with_capacity(levels as usize);
+        for m in 1..=levels {
+            let (nw, nh) = (nodes_along(width, m), nodes_along(height, m));
+            let mut errors = vec![(f32::INFINITY, f32::INFINITY); nw * nh];
+            let mut rising = bitvec![u64, Lsb0; 0; nw * nh];
+            for j in 0..nh {
+                for i in 0..nw {
+                    if voids.is_some_and(|v| v.is_void(m, i, j)) {
+                        continue;
+                    }
+                    let bounds = node_bounds(width, height, m, i, j);
+                    let falling = heights.cell_error(bounds, Diagonal::Falling);
+                    let rises = heights.cell_error(bounds, Diagonal::Rising);
+                    let two = falling.min(rises);
+                    let fan = heights.fan_error(bounds).unwrap_or(f64::INFINITY);
+                    errors[j * nw + i] = (round_up(two), round_up(fan));
+                    rising.set(j * nw + i, rises < falling);
+                }
+            }
+            pyramid.push(errors);
+            diagonals.push(rising);
+        }
+        ErrorPyramid {
+            width,
+            levels: pyramid,
+            rising: diagonals,
+        }
+    }
+
+    /// The smaller error of node `(level, i, j)`'s two shapes (`level ≥ 1`).
+    #[inline]
+    pub fn error(&self, level: u32, i: usize, j: usize) -> f32 {
+        let (two, fan) = self.errors(level, i, j);
+        two.min(fan)
+    }
+
+    #[inline]
+    fn errors(&self, level: u32, i: usize, j: usize) -> (f32, f32) {
+        let nw = nodes_along(self.width, level);
+        self.levels[level as usize - 1][j * nw + i]
+    }
+
+    /// The cheapest shape of node `(level, i, j)` within `tolerance`: two triangles when
+    /// they are within it, else the fan.
+    pub fn shape_within(&self, level: u32, i: usize, j: usize, tolerance: f64) -> Shape {
+        let (two, _) = self.errors(level, i, j);
+        if f64::from(two) <= tolerance {
+            let nw = nodes_along(self.width, level);
+            Shape::Two(if self.rising[level as usize - 1][j * nw + i] {
+                Diagonal::Rising
+            } else {
+                Diagonal::Falling
+            })
+        } else {
+            Shape::Fan
+        }
+    }
+
+    /// The largest finite error of a root node: every tolerance at least this leaves the
+    /// roots unsplit (0 for a grid without nodes).
+    pub fn top_error(&self) -> f32 {
+        self.levels.last().map_or(0.0, |roots| {
+            roots
+                .iter()
+                .map(|&(two, fan)| two.min(fan))
+                .filter(|e| e.is_finite())
+                .fold(0.0, f32::max)
+        })
+    }
+
+    /// Bytes the pyramid holds.
+    pub fn heap_bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.len() * 8).sum::<usize>()
+            + self.rising.iter().map(|b| b.capacity() / 8).sum::<usize>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolation_is_exact_at_corners_and_on_planes() {
+        let (w, h) = (5, 4);
+        let values: Vec<f64> = (0..w * h)
+            .map(|s| 3.0 * (s % w) as f64 - 2.0 * (s / w) as f64 + 7.0)
+            .collect();
+        let heights = Heights {
+            width: w,
+            height: h,
+            values: &values,
+        };
+        let bounds = (0, 0, 4, 3);
+        for d in [Diagonal::Falling, Diagonal::Rising] {
+            assert!(heights.cell_error(bounds, d) < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_bump_picks_the_diagonal_through_it() {
+        // A ridge along the falling diagonal of a 3×3 grid.
+        let values = [5.0, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 5.0];
+        let heights = Heights {
+            width: 3,
+            height: 3,
+            values: &values,
+        };
+        let bounds = (0, 0, 2, 2);
+        assert_eq!(heights.diagonal(bounds), Diagonal::Falling);
+        // Along the ridge the error is the edge midpoints' 2.5; across it, the centre's 5.
+        assert_eq!(heights.cell_error(bounds, Diagonal::Falling), 2.5);
+        assert_eq!(heights.cell_error(bounds, Diagonal::Rising), 5.0);
+        // The fan through the centre leaves only the edge midpoints' 2.5 too.
+        assert_eq!(heights.fan_error(bounds), Some(2.5));
+    }
+
+    #[test]
+    fn voids_propagate_to_every_ancestor() {
+        let (w, h) = (9, 9);
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        valid.set(4 * w + 6, false);
+        let voids = VoidPyramid::new(w, h, 3, &valid).unwrap();
+        // The sample (6, 4) is a corner of cells (5..6, 3..4).
+        assert!(voids.is_void(0, 5, 3) && voids.is_void(0, 6, 4));
+        assert!(!voids.is_void(0, 4, 4));
+        assert!(voids.is_void(1, 2, 1) && voids.is_void(1, 3, 2));
+        assert!(voids.is_void(3, 0, 0));
+        assert!(VoidPyramid::new(w, h, 3, &bitvec![u64, Lsb0; 1; w * h]).is_none());
+    }
+}

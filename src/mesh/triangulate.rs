@@ -1,0 +1,296 @@
+//! Crack-free triangulation of a cell partition.
+//!
+//! Every cell is triangulated with its four corners and every vertex its smaller
+//! neighbours put on its edges (the *hanging* vertices), so no T-junction or crack can
+//! appear: along a shared edge, both sides have the same vertices. A cell with `k`
+//! hanging vertices gets `k + 2` triangles in the [`Shape::Two`] shape: the diagonal cuts
+//! it into two halves, and each half `A → B → C` (with hanging vertices `a₁…` on `AB` and
+//! `b₁…` on `BC`) is fanned from `C` over `A, a₁, …, a_last` and from `a_last` (or `A`)
+//! over `B, b₁, …, C`; every triangle then has two vertices on one cell side and the third
+//! off that side's line, so none is degenerate. In the [`Shape::Fan`] shape it gets
+//! `k + 4`: one triangle from the centre sample to each boundary segment.
+//!
+//! The cost is proportional to the output: each leaf looks at its four same-level
+//! neighbours' split bits and walks down only into split ones.
+
+use super::cells::{Cell, CellTree};
+use super::pyramid::{Diagonal, Heights, Shape};
+use super::GridMesh;
+
+/// One side of a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Top,
+    Right,
+    Bottom,
+    Left,
+}
+
+/// Reusable buffers for triangulating cell after cell.
+#[derive(Debug, Default)]
+pub struct Scratch {
+    /// Hanging vertices per side, as coordinates along the side (increasing).
+    sides: [Vec<usize>; 4],
+    /// Corner-to-corner boundary chains of the current half.
+    chain_ab: Vec<u32>,
+    chain_bc: Vec<u32>,
+}
+
+/// Vertex numbering of grid samples, dense in the order vertices are first used.
+struct VertexIndex {
+    /// `id + 1` per sample, 0 = not a vertex yet (allocated zeroed: the pages a coarse
+    /// mesh never touches cost nothing).
+    ids: Vec<u32>,
+    samples: Vec<u32>,
+}
+
+impl VertexIndex {
+    #[inline]
+    fn id(&mut self, sample: usize) -> u32 {
+        let slot = &mut self.ids[sample];
+        if *slot == 0 {
+            self.samples.push(sample as u32);
+            *slot = self.samples.len() as u32;
+        }
+        *slot - 1
+    }
+}
+
+/// Triangulates every leaf of `tree` in the shape `shape` gives it.
+///
+/// # Panics
+/// If the grid has more than `u32::MAX` samples or `heights` is not the tree's grid.
+pub fn triangulate(
+    tree: &CellTree,
+    heights: Heights<'_>,
+    shape: impl Fn(Cell) -> Shape,
+) -> GridMesh {
+    let (width, height) = tree.size();
+    assert_eq!((heights.width, heights.height), (width, height));
+    let n = width * height;
+    assert!(
+        u32::try_from(n).is_ok(),
+        "grid too large for 32-bit vertex ids"
+    );
+    let mut index = VertexIndex {
+        ids: vec![0; n],
+        samples: Vec::new(),
+    };
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 2 + 16);
+    let mut scratch = Scratch::default();
+    for &cell in tree.leaves() {
+        cell_triangles(
+            tree,
+            cell,
+            shape(cell),
+            &mut scratch,
+            &mut |s| index.id(s),
+            &mut |t| triangles.push(t),
+        );
+    }
+    GridMesh {
+        width,
+        height,
+        vertices: index.samples,
+        triangles,
+    }
+}
+
+/// The two-triangle shape with the diagonal [`Heights::diagonal`] picks: the shape of
+/// cells chosen by a threshold.
+pub fn centre_rule(tree: &CellTree, heights: Heights<'_>, cell: Cell) -> Shape {
+    if cell.level == 0 {
+        Shape::Two(Diagonal::Falling)
+    } else {
+        Shape::Two(heights.diagonal(tree.bounds(cell)))
+    }
+}
+
+/// Emits the triangles of leaf `cell` in `shape` as triples of whatever `vertex` maps a
+/// sample index to, counter-clockwise in the grid frame; returns the number of hanging
+/// vertices (the triangles are 2 or 4, by shape, plus that).
+pub fn cell_triangles(
+    tree: &CellTree,
+    cell: Cell,
+    shape: Shape,
+    scratch: &mut Scratch,
+    vertex: &mut impl FnMut(usize) -> u32,
+    emit: &mut impl FnMut([u32; 3]),
+) -> usize {
+    let (width, _) = tree.size();
+    let bounds = tree.bounds(cell);
+    let (x0, y0, x1, y1) = bounds;
+    let sample = |x: usize, y: usize| y * width + x;
+    if cell.level == 0 {
+        // No neighbour is smaller than a grid cell: two triangles (the diagonal does not
+        // change the height at any sample).
+        let (tl, tr) = (vertex(sample(x0, y0)), vertex(sample(x1, y0)));
+        let (bl, br) = (vertex(sample(x0, y1)), vertex(sample(x1, y1)));
+        emit([tl, tr, br]);
+        emit([br, bl, tl]);
+        return 0;
+    }
+    let mut hanging = 0;
+    for (s, side) in [Side::Top, Side::Right, Side::Bottom, Side::Left]
+        .into_iter()
+        .enumerate()
+    {
+        let points = &mut scratch.sides[s];
+        points.clear();
+        neighbour_points(tree, cell, side, points);
+        hanging += points.len();
+    }
+    let diagonal = match shape {
+        Shape::Two(diagonal) => diagonal,
+        Shape::Fan => {
+            let ring = &mut scratch.chain_ab;
+            ring.clear();
+            let corner = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
+            for (s, &(cx, cy)) in corner.iter().enumerate() {
+                ring.push(vertex(sample(cx, cy)));
+                let points = &scratch.sides[s];
+                match s {
+                    0 => ring.extend(points.iter().map(|&x| vertex(sample(x, y0)))),
+                    1 => ring.extend(points.iter().map(|&y| vertex(sample(x1, y)))),
+                    2 => ring.extend(points.iter().rev().map(|&x| vertex(sample(x, y1)))),
+                    _ => ring.extend(points.iter().rev().map(|&y| vertex(sample(x0, y)))),
+                }
+            }
+            let centre = vertex(sample((x0 + x1) / 2, (y0 + y1) / 2));
+            for k in 0..ring.len() {
+                emit([ring[k], ring[(k + 1) % ring.len()], centre]);
+            }
+            return hanging;
+        }
+    };
+    if hanging == 0 {
+        let (tl, tr) = (vertex(sample(x0, y0)), vertex(sample(x1, y0)));
+        let (bl, br) = (vertex(sample(x0, y1)), vertex(sample(x1, y1)));
+        match diagonal {
+            Diagonal::Falling => {
+                emit([tl, tr, br]);
+                emit([br, bl, tl]);
+            }
+            Diagonal::Rising => {
+                emit([tr, br, bl]);
+                emit([bl, tl, tr]);
+            }
+        }
+        return 0;
+    }
+    // Boundary chains, counter-clockwise in the grid frame: top left → right, right top →
+    // bottom, bottom right → left, left bottom → top. Each chain runs corner to corner.
+    let corner = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
+    let chain = |s: usize, out: &mut Vec<u32>, vertex: &mut dyn FnMut(usize) -> u32| {
+        out.clear();
+        let (cx, cy) = corner[s];
+        out.push(vertex(sample(cx, cy)));
+        let points = &scratch.sides[s];
+        match s {
+            0 => out.extend(points.iter().map(|&x| vertex(sample(x, y0)))),
+            1 => out.extend(points.iter().map(|&y| vertex(sample(x1, y)))),
+            2 => out.extend(points.iter().rev().map(|&x| vertex(sample(x, y1)))),
+            _ => out.extend(points.iter().rev().map(|&y| vertex(sample(x0, y)))),
+        }
+        let (nx, ny) = corner[(s + 1) % 4];
+        out.push(vertex(sample(nx, ny)));
+    };
+    // Halves as (first side, second side): A = start of the first, B = the corner
+    // between, C = end of the second.
+    let halves = match diagonal {
+        Diagonal::Falling => [(0, 1), (2, 3)],
+        Diagonal::Rising => [(1, 2), (3, 0)],
+    };
+    for (first, second) in halves {
+        let mut ab = std::mem::take(&mut scratch.chain_ab);
+        let mut bc = std::mem::take(&mut scratch.chain_bc);
+        chain(first, &mut ab, vertex);
+        chain(second, &mut bc, vertex);
+        fan_half(&ab, &bc, emit);
+        scratch.chain_ab = ab;
+        scratch.chain_bc = bc;
+    }
+    hanging
+}
+
+/// Triangulates the half-cell bounded by chains `ab` (A … B) and `bc` (B … C) and the
+/// diagonal C → A.
+fn fan_half(ab: &[u32], bc: &[u32], emit: &mut impl FnMut([u32; 3])) {
+    let c = *bc.last().expect("chains hold their corners");
+    // Fan from C over A, a₁, …, a_last.
+    let last = ab.len() - 2;
+    for k in 0..last {
+        emit([ab[k], ab[k + 1], c]);
+    }
+    // Fan from a_last (A when AB has no hanging vertex) over B, b₁, …, C.
+    let pivot = ab[last];
+    for k in 0..bc.len() - 1 {
+        emit([pivot, bc[k], bc[k + 1]]);
+    }
+}
+
+/// Appends to `points` the coordinates (along `side`, increasing) of the vertices that
+/// the smaller cells across `side` of `cell` put strictly inside that side.
+fn neighbour_points(tree: &CellTree, cell: Cell, side: Side, points: &mut Vec<usize>) {
+    let Cell { level, i, j } = cell;
+    let neighbour = match side {
+        Side::Top => j.checked_sub(1).map(|nj| (i, nj)),
+        Side::Right => Some((i + 1, j)),
+        Side::Bottom => Some((i, j + 1)),
+        Side::Left => i.checked_sub(1).map(|ni| (ni, j)),
+    };
+    let Some((ni, nj)) = neighbour else {
+        return;
+    };
+    if !tree.is_split(level, ni, nj) {
+        return;
+    }
+    // The neighbour faces us with its opposite side.
+    let facing = match side {
+        Side::Top => Side::Bottom,
+        Side::Right => Side::Left,
+        Side::Bottom => Side::Top,
+        Side::Left => Side::Right,
+    };
+    collect_side(tree, level, ni, nj, facing, points);
+    // The last point is the far corner of the shared side, not a hanging vertex.
+    points.pop();
+}
+
+/// Appends the end coordinate (along `side`) of every leaf of split node
+/// `(level, i, j)`'s subtree lying along its `side`, in increasing order.
+fn collect_side(
+    tree: &CellTree,
+    level: u32,
+    i: usize,
+    j: usize,
+    side: Side,
+    points: &mut Vec<usize>,
+) {
+    let (cw, ch) = tree.nodes(level - 1);
+    for k in 0..2 {
+        let (ci, cj) = match side {
+            Side::Top => (2 * i + k, 2 * j),
+            Side::Bottom => (2 * i + k, 2 * j + 1),
+            Side::Left => (2 * i, 2 * j + k),
+            Side::Right => (2 * i + 1, 2 * j + k),
+        };
+        if ci >= cw || cj >= ch {
+            continue;
+        }
+        if tree.is_split(level - 1, ci, cj) {
+            collect_side(tree, level - 1, ci, cj, side, points);
+        } else {
+            let child = Cell {
+                level: level - 1,
+                i: ci,
+                j: cj,
+            };
+            let (_, _, x1, y1) = tree.bounds(child);
+            points.push(match side {
+                Side::Top | Side::Bottom => x1,
+                Side::Left | Side::Right => y1,
+            });
+        }
+    }
+}
