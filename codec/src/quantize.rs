@@ -106,7 +106,9 @@ const FLOAT_GRIDS: [f64; 14] = [
     1.0, 0.5, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.03125, 0.025, 0.02, 0.01, 0.005, 0.001,
 ];
 
-/// The coarsest grid on which every valid float sample lies exactly (as `f32`).
+/// The coarsest grid on which every valid float sample lies exactly: its reconstruction
+/// (as the decoder computes it, narrowed to `f32`) has the sample's bits. −0 is on no grid:
+/// it is stored as the integer 0, which gives back +0.
 pub fn detect_float_grid(values: &[f32], mask: &[bool]) -> Option<f64> {
     let max_abs = values
         .iter()
@@ -116,11 +118,11 @@ pub fn detect_float_grid(values: &[f32], mask: &[bool]) -> Option<f64> {
         .fold(0.0, f64::max);
     FLOAT_GRIDS.into_iter().find(|&step| {
         max_abs / step < MAX_INTEGER_MAGNITUDE
-            && values
-                .iter()
-                .zip(mask)
-                .filter(|(_, &m)| m)
-                .all(|(&v, _)| ((v as f64 / step).round() * step) as f32 == v)
+            && values.iter().zip(mask).filter(|(_, &m)| m).all(|(&v, _)| {
+                let mapping = ValueMapping { offset: 0.0, step };
+                let back = mapping.value((v as f64 / step).round()) as f32;
+                back.to_bits() == v.to_bits()
+            })
     })
 }
 
@@ -176,7 +178,11 @@ pub fn float_plane(
 pub fn default_float_step(min: f64, max: f64) -> f64 {
     let range = (max - min).max(f64::MIN_POSITIVE);
     let largest = min.abs().max(max.abs()).max(1e-30);
-    let mut step = 2f64.powi((range / 65536.0).log2().floor() as i32);
+    // At least the smallest normal: `powi` underflows to 0 below 2^-1022, and a zero step
+    // would never grow in the loop below (constant rasters have `range` = MIN_POSITIVE).
+    let mut step = 2f64
+        .powi((range / 65536.0).log2().floor() as i32)
+        .max(f64::MIN_POSITIVE);
     // Keep |q| within the integer coder's limit.
     while largest / step > MAX_INTEGER_MAGNITUDE {
         step *= 2.0;
@@ -318,6 +324,22 @@ mod tests {
         for ((&q, &r), &v) in plane.values.iter().zip(&plane.residuals).zip(&values) {
             let base = plane.mapping.value(q as f64) as f32;
             assert_eq!(f32::from_bits(base.to_bits().wrapping_add(r as u32)), v);
+        }
+    }
+
+    #[test]
+    fn negative_zero_is_on_no_grid() {
+        let mask = vec![true; 3];
+        assert_eq!(detect_float_grid(&[1.0, 0.0, 2.5], &mask), Some(0.5));
+        assert_eq!(detect_float_grid(&[1.0, -0.0, 2.5], &mask), None);
+    }
+
+    #[test]
+    fn default_step_of_a_constant_raster_is_positive() {
+        for v in [0.0, -0.0, 1e-30, 0.123_456_79, 3.0e38] {
+            let step = default_float_step(v, v);
+            assert!(step > 0.0 && step.is_finite(), "{v}: step {step}");
+            assert!(v.abs() / step <= MAX_INTEGER_MAGNITUDE, "{v}: step {step}");
         }
     }
 
