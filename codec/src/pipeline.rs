@@ -281,7 +281,15 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
                     "the 9/7 wavelet is lossy: error bounds need the 5/3 wavelet".into(),
                 ));
             }
-            prepare_97(raster, &mask, &norms)
+            let prepared = prepare_97(raster, &mask, &norms);
+            // Infinities, or finite samples whose transform overflows f32, leave no finite
+            // mean or step for the header (the decoder would refuse the stream).
+            if !(prepared.mapping.offset.is_finite() && prepared.coefficient_step.is_finite()) {
+                return Err(CodecError::InvalidParameters(
+                    "the 9/7 wavelet needs samples whose transform stays finite in f32".into(),
+                ));
+            }
+            prepared
         }
     };
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);

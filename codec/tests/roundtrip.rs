@@ -237,6 +237,40 @@ fn garbage_and_damage_give_errors_or_images_never_panics() {
 }
 
 #[test]
+fn float_extremes_are_refused_or_round_trip() {
+    let specials = [
+        (f32::INFINITY, f32::NEG_INFINITY),
+        (f32::INFINITY, 1.0),
+        (f32::MAX, -f32::MAX),
+        (-0.0, 0.0),
+        (-0.0, -0.0),
+        (0.123_456_79, 0.123_456_79),
+    ];
+    for (a, b) in specials {
+        let values: Vec<f32> = (0..64).map(|i| if i % 3 == 0 { a } else { b }).collect();
+        let raster = Raster::new(8, 8, Samples::F32(values.clone())).unwrap();
+        for wavelet in [Wavelet::Int53, Wavelet::Cdf97] {
+            let options = EncodeOptions {
+                wavelet,
+                ..EncodeOptions::new(Quality::Lossless, None)
+            };
+            let Ok(encoded) = encode(&raster, &options) else {
+                continue;
+            };
+            let decoded = decode(&encoded.bytes, &DecodeOptions::default())
+                .unwrap_or_else(|e| panic!("{a}, {b}, {wavelet:?}: {e}"));
+            if wavelet == Wavelet::Int53 {
+                let Samples::F32(back) = &decoded.raster.samples else {
+                    panic!("sample type");
+                };
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(back), bits(&values), "{a}, {b}");
+            }
+        }
+    }
+}
+
+#[test]
 fn absurd_dimensions_are_refused_before_allocating() {
     let raster = terrain(8, 8, SampleType::U8, 1, 50.0);
     let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
