@@ -740,7 +740,9 @@ pub struct Damage {
 
 /// Builds output samples from reconstructed values, in place where the output type is no
 /// wider than the input: integers are rounded and clamped to the type's range, floats
-/// narrowed with `as f32`; where `mask` is false the sample is `nodata` (NaN if none).
+/// narrowed with `as f32`; where `mask` is false the sample is `nodata` (NaN if none, or
+/// if an f32 raster's nodata has no f32 value: its voids were NaN, and `nodata as f32`
+/// would be some other, valid value).
 fn to_samples<X: Copy>(
     sample_type: SampleType,
     values: Vec<X>,
@@ -748,7 +750,10 @@ fn to_samples<X: Copy>(
     mask: Option<&BitSlice<u64, Lsb0>>,
     nodata: Option<f64>,
 ) -> Samples {
-    let fill = nodata.unwrap_or(f64::NAN);
+    let fill = match nodata {
+        Some(nd) if sample_type != SampleType::F32 || f64::from(nd as f32) == nd => nd,
+        _ => f64::NAN,
+    };
     let (lo, hi) = sample_type.value_range();
     let value = |i: usize, x: X| -> f64 {
         if mask.is_some_and(|m| !m[i]) {

@@ -271,6 +271,33 @@ fn float_extremes_are_refused_or_round_trip() {
 }
 
 #[test]
+fn float_nan_voids_stay_voids_whatever_the_nodata() {
+    let values: Vec<f32> = (0..64)
+        .map(|i| {
+            if i % 5 == 0 {
+                f32::NAN
+            } else {
+                i as f32 * 0.37
+            }
+        })
+        .collect();
+    // Nodata values an f32 cannot hold (its voids are the NaNs), and one it can.
+    for nodata in [1e-310, 1e300, 0.1, -9999.0] {
+        let mut raster = Raster::new(8, 8, Samples::F32(values.clone())).unwrap();
+        raster.nodata = Some(nodata);
+        let decoded = roundtrip(&raster, &EncodeOptions::new(Quality::Lossless, None));
+        assert_eq!(decoded.nodata, Some(nodata));
+        for i in 0..64 {
+            assert_eq!(
+                decoded.is_valid(i),
+                raster.is_valid(i),
+                "{nodata:e}: sample {i}"
+            );
+        }
+    }
+}
+
+#[test]
 fn absurd_dimensions_are_refused_before_allocating() {
     let raster = terrain(8, 8, SampleType::U8, 1, 50.0);
     let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
