@@ -782,3 +782,40 @@ fn voids_meshes_keep_the_bound_and_count_cut_off_samples() {
         }
     }
 }
+
+#[test]
+fn demo_writes_a_mesh_and_prints_the_tables() {
+    let dir = scratch();
+    let report = json(&["demo", "--out-dir", s(dir.path()), "--json"]);
+    let mesh = &report["mesh"];
+    let path = dir.path().join("jacksboro_fault.glb");
+    assert_eq!(mesh["output"], s(&path));
+    assert_eq!(mesh["format"], "glb");
+    let tolerance = f64_of(&mesh["tolerance"]);
+    let triangles = u64_of(&mesh["triangles"]);
+    assert!(triangles > 0);
+    assert!(f64_of(&mesh["error"]["max_error"]) <= tolerance, "{mesh}");
+    assert_eq!(u64_of(&mesh["error"]["compared_samples"]), SAMPLES);
+    assert_eq!(
+        u64_of(&mesh["file_bytes"]),
+        std::fs::metadata(&path).unwrap().len()
+    );
+    assert_eq!(
+        counts_in_file(&path),
+        (u64_of(&mesh["vertices"]), triangles)
+    );
+    // One row per pass of the lossless stream, the plane falling to 0.
+    let tables = report["tables"].as_array().expect("a tables array");
+    assert!(tables.len() > 4);
+    for (k, row) in tables.iter().enumerate() {
+        assert_eq!(u64_of(&row["plane"]), (tables.len() - 1 - k) as u64);
+        assert!(u64_of(&row["triangles"]) > 0);
+    }
+
+    // The text report prints both tables after the rate table.
+    let text = stdout(&["demo", "--out-dir", s(dir.path())]);
+    let table1 = markdown_rows(&text, "Table 1");
+    assert_eq!(table1.len(), tables.len(), "{text}");
+    assert_eq!(markdown_rows(&text, "Table 2").len(), tables.len());
+    assert!(text.contains("jacksboro_fault.glb"), "{text}");
+}

@@ -1,9 +1,16 @@
 //! `demo`: the bundled sample end to end — lossless, progressive prefixes of one 9/7 and
-//! one 5/3 stream, and error-bounded streams — printed as one table.
+//! one 5/3 stream, and error-bounded streams — printed as one table; then a mesh of the
+//! lossless decode within a height tolerance, and the seed paper's Tables 1 and 2.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use serde::Serialize;
+use wavemesh::lod::{self, build_mesh, Surface, TableRow, TableRows};
+use wavemesh::mesh::cells::SplitRule;
+use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
+use wavemesh::mesh::rasterise::{mesh_error, MeshError};
+use wavemesh::mesh::MeshTarget;
 use wavemesh::metrics::{self, Distortion};
 use wavemesh_codec::{
     decode, encode, DecodeOptions, EncodeOptions, Encoded, Quality, Raster, Wavelet,
@@ -14,6 +21,9 @@ use super::{timed, CliError, InputArgs};
 
 /// The sample the demo uses when none is given.
 const DEFAULT_SAMPLE: &str = "samples/jacksboro_fault.tif";
+
+/// Height tolerance of the demo's mesh, data units (metres for the sample).
+const MESH_TOLERANCE: f64 = 5.0;
 
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
@@ -42,6 +52,25 @@ struct Row {
     seconds: f64,
 }
 
+/// The mesh of the lossless decode within [`MESH_TOLERANCE`].
+#[derive(Debug, Serialize)]
+struct DemoMesh {
+    output: PathBuf,
+    format: &'static str,
+    tolerance: f64,
+    triangles: usize,
+    vertices: usize,
+    /// Triangles as a percentage of the full grid's `2·(w−1)·(h−1)`.
+    remaining_percent: f64,
+    /// Against the original DEM (the lossless decode is bit-exact).
+    error: MeshError,
+    decode_seconds: f64,
+    pyramid_seconds: f64,
+    mesh_seconds: f64,
+    write_seconds: f64,
+    file_bytes: u64,
+}
+
 #[derive(Serialize)]
 struct DemoReport<'a> {
     schema_version: u32,
@@ -52,6 +81,9 @@ struct DemoReport<'a> {
     sample_type: &'static str,
     range: f64,
     rows: Vec<Row>,
+    mesh: DemoMesh,
+    /// The seed paper's Tables 1 and 2, one row per pass of the lossless stream.
+    tables: Vec<TableRow>,
 }
 
 fn sample_path(args: &DemoArgs) -> PathBuf {
@@ -69,6 +101,62 @@ fn sample_path(args: &DemoArgs) -> PathBuf {
 fn encode_or_fail(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, f64), CliError> {
     let (encoded, seconds, _) = timed(|| encode(raster, options));
     Ok((encoded.map_err(CliError::Encode)?, seconds))
+}
+
+/// Decodes `lossless` with the significance map, meshes it within [`MESH_TOLERANCE`],
+/// checks the bound against `raster` and writes the mesh to `path` (glTF binary).
+fn demo_mesh(raster: &Raster, lossless: &Encoded, path: &Path) -> Result<DemoMesh, CliError> {
+    let options = DecodeOptions {
+        significance_map: true,
+        ..DecodeOptions::default()
+    };
+    let (decoded, decode_seconds, _) = timed(|| decode(&lossless.bytes, &options));
+    let decoded = decoded.map_err(|e| CliError::Stream(PathBuf::from("5/3 lossless"), e))?;
+    let map = decoded
+        .significance
+        .as_ref()
+        .expect("decoded with the significance map");
+    let surface = Surface::of(&decoded.raster);
+    let timed_mesh = build_mesh(
+        map,
+        &surface,
+        MeshTarget::Tolerance(MESH_TOLERANCE),
+        SplitRule::Zerotree,
+        None,
+    );
+    let mesh = &timed_mesh.mesh;
+    let reference = Surface::of(raster);
+    let error = mesh_error(mesh, &surface.heights, &reference.heights, &reference.valid);
+    if error.max_error > MESH_TOLERANCE || error.max_error.is_nan() {
+        return Err(CliError::Usage(format!(
+            "mesh max error {} exceeds the tolerance {MESH_TOLERANCE}",
+            error.max_error
+        )));
+    }
+    let placement = match &raster.georef {
+        Some(g) => Placement::georeferenced(g.geotransform, 1.0),
+        None => Placement::default(),
+    };
+    let format = MeshFormat::Glb;
+    let start = Instant::now();
+    write_mesh(path, mesh, &surface.heights, &placement, format)
+        .map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))?;
+    let write_seconds = start.elapsed().as_secs_f64();
+    let full = 2 * raster.width.saturating_sub(1) * raster.height.saturating_sub(1);
+    Ok(DemoMesh {
+        output: path.to_path_buf(),
+        format: format.name(),
+        tolerance: MESH_TOLERANCE,
+        triangles: mesh.triangles.len(),
+        vertices: mesh.vertices.len(),
+        remaining_percent: 100.0 * mesh.triangles.len() as f64 / full.max(1) as f64,
+        error,
+        decode_seconds,
+        pyramid_seconds: timed_mesh.pyramid_seconds,
+        mesh_seconds: timed_mesh.mesh_seconds,
+        write_seconds,
+        file_bytes: std::fs::metadata(path).map_or(0, |m| m.len()),
+    })
 }
 
 fn decode_row(
@@ -174,6 +262,23 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         rows.push(row);
     }
 
+    // A mesh of the lossless decode, and the seed paper's tables from the same stream.
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "demo".into(), |s| s.to_string_lossy().into_owned());
+    let mesh = demo_mesh(
+        &raster,
+        &lossless,
+        &args.out_dir.join(format!("{stem}.glb")),
+    )?;
+    let tables = lod::paper_table(
+        &raster,
+        &lossless,
+        &TableRows::AllPasses,
+        SplitRule::Zerotree,
+    )
+    .map_err(|e| CliError::Stream(PathBuf::from("5/3 lossless"), e))?;
+
     let range = compare_rasters(&raster, &raster, &path)?.range;
     let report = DemoReport {
         schema_version: SCHEMA_VERSION,
@@ -184,6 +289,8 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         sample_type: raster.sample_type().name(),
         range,
         rows,
+        mesh,
+        tables,
     };
     if args.json {
         println!(
@@ -221,5 +328,26 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
             r.seconds
         );
     }
+    let m = &report.mesh;
+    println!(
+        "\nmesh {} (5/3 lossless, tolerance {} data units): {} triangles, {} vertices ({:.2} % of the grid's)",
+        m.output.display(),
+        m.tolerance,
+        m.triangles,
+        m.vertices,
+        m.remaining_percent
+    );
+    println!(
+        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
+        m.error.rmse,
+        m.error.psnr_db,
+        m.error.max_error,
+        m.decode_seconds,
+        m.pyramid_seconds,
+        m.mesh_seconds,
+        m.write_seconds,
+        m.file_bytes
+    );
+    println!("\n{}", lod::table_markdown(&report.tables).trim_end());
     Ok(())
 }
