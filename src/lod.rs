@@ -56,12 +56,11 @@ impl Surface {
 /// The plane of the pass a decode was in when it stopped: the threshold of the decoder's
 /// state (0 when the stream was decoded to the end).
 pub fn decoded_plane(decoded: &Decoded) -> u32 {
+    // After `k` complete passes from the top plane, the decoder is in the pass of plane
+    // `top − k` (plane 0 once every pass is done; a stream the encoder cut stops inside
+    // a pass like any prefix).
     let top = decoded.header.top_plane.map_or(0, u32::from);
-    if decoded.complete {
-        0
-    } else {
-        top.saturating_sub(decoded.passes_decoded)
-    }
+    top.saturating_sub(decoded.passes_decoded)
 }
 
 /// The threshold plane for a threshold value `t`: `⌊log2 t⌋`, 0 below 2.

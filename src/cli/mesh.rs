@@ -14,7 +14,7 @@ use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
-use super::{timed, with_progress, CliError, InputArgs};
+use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
 
 /// Which coefficients split a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -404,6 +404,10 @@ pub struct TableArgs {
     /// Which coefficients split a cell.
     #[arg(long, value_enum, default_value = "zerotree")]
     rule: RuleArg,
+    /// Transform of the stream the rows decode: 53 (one lossless stream, the default) or
+    /// 97 (a lossy stream cut at the largest --bpp; needs --bpp).
+    #[arg(long, default_value = "53")]
+    wavelet: WaveletArg,
     /// Output format.
     #[arg(long, value_enum, default_value = "md")]
     format: TableFormat,
@@ -439,10 +443,22 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         }
         (None, None) => TableRows::AllPasses,
     };
-    let encoded = with_progress("encoding", || {
-        encode(&raster, &EncodeOptions::new(Quality::Lossless, None))
-    })
-    .map_err(CliError::Encode)?;
+    let mut options = EncodeOptions::new(Quality::Lossless, None);
+    if args.wavelet == WaveletArg::Cdf97 {
+        let Some(top) = args
+            .bpp
+            .as_ref()
+            .and_then(|r| r.iter().copied().reduce(f64::max))
+        else {
+            return Err(CliError::Usage(
+                "--wavelet 97 is lossy: give the rows' rates with --bpp".into(),
+            ));
+        };
+        options.wavelet = args.wavelet.into();
+        options.budget_bytes = Some((top * raster.len() as f64 / 8.0).ceil() as u64);
+    }
+    let encoded =
+        with_progress("encoding", || encode(&raster, &options)).map_err(CliError::Encode)?;
     let rule = match args.rule {
         RuleArg::Zerotree => SplitRule::Zerotree,
         RuleArg::Own => SplitRule::OwnCoefficients,

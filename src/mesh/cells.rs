@@ -38,14 +38,62 @@ pub struct Cell {
     pub j: usize,
 }
 
+/// One side of a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// The side along the cell's first row.
+    Top,
+    /// The side along its last column.
+    Right,
+    /// The side along its last row.
+    Bottom,
+    /// The side along its first column.
+    Left,
+}
+
+impl Side {
+    /// The four sides, clockwise on screen (counter-clockwise in the grid frame).
+    pub const ALL: [Side; 4] = [Side::Top, Side::Right, Side::Bottom, Side::Left];
+
+    /// The side of a neighbour that faces this one.
+    pub fn opposite(self) -> Side {
+        match self {
+            Side::Top => Side::Bottom,
+            Side::Right => Side::Left,
+            Side::Bottom => Side::Top,
+            Side::Left => Side::Right,
+        }
+    }
+}
+
+/// What lies across a side of a leaf.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Across {
+    /// The grid's border.
+    Border,
+    /// A leaf of the same level.
+    Leaf,
+    /// Smaller leaves (the same-level node split).
+    Split,
+    /// Part of a larger leaf.
+    Larger,
+}
+
 /// A quadtree partition of a grid into cells.
 #[derive(Debug, Clone)]
 pub struct CellTree {
     width: usize,
     height: usize,
     levels: u32,
-    /// Split bit of every node, index `m − 1` for level `m`.
-    split: Vec<BitVec<u64, Lsb0>>,
+    /// Nodes per row and column, index `m` for level `m`.
+    dims: Vec<(usize, usize)>,
+    /// Split bit of every node (bit `k % 64` of word `k / 64` for node index `k`),
+    /// index `m − 1` for level `m`.
+    split: Vec<Vec<u64>>,
+    /// Sides given a vertex at their midpoint (between same-level leaves or on the
+    /// border), index `m − 1`: horizontal sides `(rows + 1) × columns`, then vertical
+    /// sides `rows × (columns + 1)`.
+    midpoints: Vec<(BitVec<u64, Lsb0>, BitVec<u64, Lsb0>)>,
     /// The leaves, void level-0 cells excluded, in depth-first order.
     leaves: Vec<Cell>,
     /// Nodes visited to find the leaves.
@@ -62,14 +110,20 @@ impl CellTree {
         voids: Option<&VoidPyramid>,
         test: impl FnMut(u32, usize, usize) -> bool,
     ) -> CellTree {
-        let split = (1..=levels)
-            .map(|m| bitvec![u64, Lsb0; 0; nodes_along(width, m) * nodes_along(height, m)])
+        let dims: Vec<(usize, usize)> = (0..=levels)
+            .map(|m| (nodes_along(width, m), nodes_along(height, m)))
+            .collect();
+        let split = dims[1..]
+            .iter()
+            .map(|&(nw, nh)| vec![0u64; (nw * nh).div_ceil(64)])
             .collect();
         let mut tree = CellTree {
             width,
             height,
             levels,
+            dims,
             split,
+            midpoints: Vec::new(),
             leaves: Vec::new(),
             visited: 0,
         };
@@ -85,8 +139,19 @@ impl CellTree {
         rule: SplitRule,
         voids: Option<&VoidPyramid>,
     ) -> CellTree {
+        // Per-level slices, so the test is one load and one compare.
+        let planes: Vec<(&[u8], usize)> = (1..=map.levels())
+            .map(|m| {
+                let level = match rule {
+                    SplitRule::Zerotree => map.subtree_level(m),
+                    SplitRule::OwnCoefficients => map.own_level(m),
+                };
+                (level, map.nodes(m).0)
+            })
+            .collect();
         CellTree::build(map.width(), map.height(), map.levels(), voids, |m, i, j| {
-            significant(map, plane, rule, m, i, j)
+            let (level, nw) = planes[m as usize - 1];
+            u32::from(level[j * nw + i]) > plane
         })
     }
 
@@ -121,21 +186,37 @@ impl CellTree {
                 continue;
             }
             let k = self.node_index(level, i, j);
-            if !(self.split[level as usize - 1][k] || void || test(level, i, j)) {
+            let words = &mut self.split[level as usize - 1];
+            if !(words[k / 64] >> (k % 64) & 1 != 0 || void || test(level, i, j)) {
                 self.leaves.push(cell);
                 continue;
             }
-            self.split[level as usize - 1].set(k, true);
-            let (cw, ch) = self.nodes(level - 1);
-            for (a, b) in [(1, 1), (0, 1), (1, 0), (0, 0)] {
-                let (ci, cj) = (2 * i + a, 2 * j + b);
-                if ci < cw && cj < ch {
-                    stack.push(Cell {
-                        level: level - 1,
-                        i: ci,
-                        j: cj,
-                    });
+            words[k / 64] |= 1 << (k % 64);
+            let (cw, ch) = self.dims[level as usize - 1];
+            let children = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                .into_iter()
+                .map(|(a, b)| (2 * i + a, 2 * j + b))
+                .filter(|&(ci, cj)| ci < cw && cj < ch);
+            if level == 1 {
+                // Grid cells are leaves: no need to go through the stack.
+                for (ci, cj) in children {
+                    self.visited += 1;
+                    if !voids.is_some_and(|v| v.is_void(0, ci, cj)) {
+                        self.leaves.push(Cell {
+                            level: 0,
+                            i: ci,
+                            j: cj,
+                        });
+                    }
                 }
+            } else {
+                let start = stack.len();
+                stack.extend(children.map(|(ci, cj)| Cell {
+                    level: level - 1,
+                    i: ci,
+                    j: cj,
+                }));
+                stack[start..].reverse();
             }
         }
     }
@@ -144,21 +225,119 @@ impl CellTree {
     pub fn force_split(&mut self, cell: Cell) {
         if cell.level > 0 {
             let k = self.node_index(cell.level, cell.i, cell.j);
-            self.split[cell.level as usize - 1].set(k, true);
+            self.split[cell.level as usize - 1][k / 64] |= 1 << (k % 64);
+        }
+    }
+
+    /// What lies across `side` of leaf `cell`.
+    pub fn across(&self, cell: Cell, side: Side) -> Across {
+        let Some((ni, nj)) = self.neighbour(cell, side) else {
+            return Across::Border;
+        };
+        let (nw, nh) = self.nodes(cell.level);
+        if ni >= nw || nj >= nh {
+            return Across::Border;
+        }
+        if self.is_split(cell.level, ni, nj) {
+            Across::Split
+        } else if cell.level == self.levels || self.is_split(cell.level + 1, ni / 2, nj / 2) {
+            Across::Leaf
+        } else {
+            Across::Larger
+        }
+    }
+
+    /// The same-level node across `side` of `cell` (which may not exist).
+    pub fn neighbour(&self, cell: Cell, side: Side) -> Option<(usize, usize)> {
+        let Cell { i, j, .. } = cell;
+        match side {
+            Side::Top => j.checked_sub(1).map(|nj| (i, nj)),
+            Side::Right => Some((i + 1, j)),
+            Side::Bottom => Some((i, j + 1)),
+            Side::Left => i.checked_sub(1).map(|ni| (ni, j)),
+        }
+    }
+
+    /// The coordinate (column for top and bottom, row for left and right) of the
+    /// midpoint of `side` of `cell`, where its children would meet: `None` for cells too
+    /// small or too clipped to have one.
+    pub fn midpoint(&self, cell: Cell, side: Side) -> Option<usize> {
+        if cell.level == 0 {
+            return None;
+        }
+        let half = 1usize << (cell.level - 1);
+        let (x0, y0, x1, y1) = self.bounds(cell);
+        match side {
+            Side::Top | Side::Bottom => (x0 + half < x1).then_some(x0 + half),
+            Side::Left | Side::Right => (y0 + half < y1).then_some(y0 + half),
+        }
+    }
+
+    fn midpoint_bit(&self, cell: Cell, side: Side) -> (bool, usize) {
+        let (nw, _) = self.nodes(cell.level);
+        let Cell { i, j, .. } = cell;
+        match side {
+            Side::Top => (true, j * nw + i),
+            Side::Bottom => (true, (j + 1) * nw + i),
+            Side::Left => (false, j * (nw + 1) + i),
+            Side::Right => (false, j * (nw + 1) + i + 1),
+        }
+    }
+
+    /// Puts a vertex at the midpoint of `side` of `cell` (level ≥ 1, a side shared with a
+    /// same-level leaf or on the border): both cells take it.
+    pub fn mark_midpoint(&mut self, cell: Cell, side: Side) {
+        if self.midpoints.is_empty() {
+            self.midpoints = (1..=self.levels)
+                .map(|m| {
+                    let (nw, nh) = self.nodes(m);
+                    (
+                        bitvec![u64, Lsb0; 0; (nh + 1) * nw],
+                        bitvec![u64, Lsb0; 0; nh * (nw + 1)],
+                    )
+                })
+                .collect();
+        }
+        let (horizontal, k) = self.midpoint_bit(cell, side);
+        let marks = &mut self.midpoints[cell.level as usize - 1];
+        if horizontal {
+            marks.0.set(k, true);
+        } else {
+            marks.1.set(k, true);
+        }
+    }
+
+    /// Whether `side` of `cell` has a marked midpoint.
+    #[inline]
+    pub fn has_midpoint(&self, cell: Cell, side: Side) -> bool {
+        if self.midpoints.is_empty() || cell.level == 0 {
+            return false;
+        }
+        let (horizontal, k) = self.midpoint_bit(cell, side);
+        let marks = &self.midpoints[cell.level as usize - 1];
+        if horizontal {
+            marks.0[k]
+        } else {
+            marks.1[k]
+        }
+    }
+
+    /// Removes every marked midpoint.
+    pub fn clear_midpoints(&mut self) {
+        for (h, v) in &mut self.midpoints {
+            h.fill(false);
+            v.fill(false);
         }
     }
 
     #[inline]
     fn node_index(&self, level: u32, i: usize, j: usize) -> usize {
-        j * nodes_along(self.width, level) + i
+        j * self.dims[level as usize].0 + i
     }
 
     /// Nodes per row and column at `level`.
     pub fn nodes(&self, level: u32) -> (usize, usize) {
-        (
-            nodes_along(self.width, level),
-            nodes_along(self.height, level),
-        )
+        self.dims[level as usize]
     }
 
     /// Whether node `(level, i, j)` exists and split (level-0 nodes never do).
@@ -167,8 +346,12 @@ impl CellTree {
         if level == 0 || level > self.levels {
             return false;
         }
-        let nw = nodes_along(self.width, level);
-        i < nw && j < nodes_along(self.height, level) && self.split[level as usize - 1][j * nw + i]
+        let (nw, nh) = self.dims[level as usize];
+        if i >= nw || j >= nh {
+            return false;
+        }
+        let k = j * nw + i;
+        self.split[level as usize - 1][k / 64] >> (k % 64) & 1 != 0
     }
 
     /// The leaves (void grid cells excluded), depth first.
@@ -199,7 +382,7 @@ impl CellTree {
 
     /// Bytes the partition holds (split bits and leaves).
     pub fn heap_bytes(&self) -> usize {
-        self.split.iter().map(|b| b.capacity() / 8).sum::<usize>()
+        self.split.iter().map(|b| b.capacity() * 8).sum::<usize>()
             + self.leaves.capacity() * std::mem::size_of::<Cell>()
     }
 }

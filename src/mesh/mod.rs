@@ -45,7 +45,7 @@ impl GridMesh {
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
-use cells::{significant, too_rough, CellTree, SplitRule};
+use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
 use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
 use rasterise::rasterise_triangle;
 use triangulate::{cell_triangles, Scratch};
@@ -172,6 +172,8 @@ impl<'a> Mesher<'a> {
             }
             MeshTarget::Tolerance(tolerance) => self.within(tolerance, base_plane, rule),
             MeshTarget::TrianglesByTolerance(budget) => {
+                // Bisection on the tolerance; triangle counts are not strictly monotone
+                // in it, so the answer is the largest mesh within budget seen.
                 let top = f64::from(self.error_pyramid().top_error());
                 let mut best = self.within(top, base_plane, rule);
                 let (mut lo, mut hi) = (0.0, top);
@@ -181,9 +183,12 @@ impl<'a> Mesher<'a> {
                     }
                     let mid = 0.5 * (lo + hi);
                     let result = self.within(mid, base_plane, rule);
-                    if result.mesh.triangles.len() <= budget {
+                    let count = result.mesh.triangles.len();
+                    if count <= budget {
                         hi = mid;
-                        best = result;
+                        if count > best.mesh.triangles.len() {
+                            best = result;
+                        }
                     } else {
                         lo = mid;
                     }
@@ -232,16 +237,32 @@ impl<'a> Mesher<'a> {
         let mut scratch = Scratch::default();
         let mut triangles: Vec<[u32; 3]> = Vec::new();
         let (mut splits, mut rounds) = (0, 0);
-        // Only cells with hanging vertices can miss: the others' error is the pyramid's.
-        let mut suspects: Vec<cells::Cell> = tree
-            .leaves()
-            .iter()
-            .copied()
-            .filter(|c| c.level > 0)
-            .collect();
-        while !suspects.is_empty() {
+        loop {
             let mut failed = Vec::new();
-            for &cell in &suspects {
+            // Fans take the side midpoints they need; a midpoint shared with a larger
+            // leaf would be a T-junction, so such a fan splits instead.
+            tree.clear_midpoints();
+            let leaves: Vec<cells::Cell> = tree.leaves().to_vec();
+            for &cell in leaves.iter().filter(|c| c.level > 0) {
+                if shape(cell) != Shape::Fan {
+                    continue;
+                }
+                for (k, side) in Side::ALL.into_iter().enumerate() {
+                    if !errors.fan_needs_midpoint(cell.level, cell.i, cell.j, k, tolerance) {
+                        continue;
+                    }
+                    match tree.across(cell, side) {
+                        Across::Border | Across::Leaf => tree.mark_midpoint(cell, side),
+                        Across::Split => {}
+                        Across::Larger => {
+                            failed.push(cell);
+                            break;
+                        }
+                    }
+                }
+            }
+            // Cells with vertices on their sides (hanging or midpoints) may now miss.
+            for &cell in leaves.iter().filter(|c| c.level > 0) {
                 triangles.clear();
                 let hanging = cell_triangles(
                     &tree,
@@ -263,9 +284,7 @@ impl<'a> Mesher<'a> {
                     rasterise_triangle(
                         width,
                         [corner(t[0]), corner(t[1]), corner(t[2])],
-                        |s, z| {
-                            worst = worst.max((z - heights.values[s]).abs());
-                        },
+                        |s, z| worst = worst.max((z - heights.values[s]).abs()),
                     );
                 }
                 if worst > tolerance {
@@ -275,30 +294,14 @@ impl<'a> Mesher<'a> {
             if failed.is_empty() {
                 break;
             }
+            failed.sort_unstable();
+            failed.dedup();
             rounds += 1;
             splits += failed.len();
             for &cell in &failed {
                 tree.force_split(cell);
             }
             tree.grow(voids, test);
-            // Re-check the leaves that are new or gained hanging vertices: those whose
-            // sides touch a side of a cell just split.
-            let mut touched = bitvec![u64, Lsb0; 0; width * height];
-            for &cell in &failed {
-                for_each_perimeter_sample(&tree, cell, |s| touched.set(s, true));
-            }
-            suspects = tree
-                .leaves()
-                .iter()
-                .copied()
-                .filter(|&c| {
-                    let mut near = false;
-                    c.level > 0 && {
-                        for_each_perimeter_sample(&tree, c, |s| near |= touched[s]);
-                        near
-                    }
-                })
-                .collect();
         }
         let mesh = triangulate::triangulate(&tree, heights, shape);
         MeshResult {
@@ -309,19 +312,5 @@ impl<'a> Mesher<'a> {
             refinement_splits: splits,
             refinement_rounds: rounds,
         }
-    }
-}
-
-/// Calls `visit` with every sample on the sides of `cell`.
-fn for_each_perimeter_sample(tree: &CellTree, cell: cells::Cell, mut visit: impl FnMut(usize)) {
-    let (width, _) = tree.size();
-    let (x0, y0, x1, y1) = tree.bounds(cell);
-    for x in x0..=x1 {
-        visit(y0 * width + x);
-        visit(y1 * width + x);
-    }
-    for y in y0..=y1 {
-        visit(y * width + x0);
-        visit(y * width + x1);
     }
 }

@@ -93,44 +93,73 @@ impl Heights<'_> {
         }
     }
 
-    /// Largest |height − interpolation| over the samples of cell `bounds` drawn as four
-    /// triangles fanned from its centre sample; `None` when the cell is too thin to have
-    /// a centre strictly inside.
-    pub fn fan_error(&self, bounds: (usize, usize, usize, usize)) -> Option<f64> {
+    /// For cell `bounds` of quadtree level `level` drawn as a fan of triangles from its
+    /// centre sample: per side (top, right, bottom, left), the largest |height −
+    /// interpolation| over the samples of that side's triangle, without and with a vertex
+    /// at the side's midpoint (infinite where the side has none). `None` when the cell is
+    /// too thin to have a centre strictly inside.
+    pub fn fan_side_errors(
+        &self,
+        bounds: (usize, usize, usize, usize),
+        level: u32,
+    ) -> Option<[[f64; 2]; 4]> {
         let (x0, y0, x1, y1) = bounds;
         if x1 - x0 < 2 || y1 - y0 < 2 {
             return None;
         }
+        let half = 1usize << level.saturating_sub(1);
         let (cx, cy) = ((x0 + x1) / 2, (y0 + y1) / 2);
-        let corner = |x: usize, y: usize| (x, y, self.at(x, y));
-        let ring = [
-            corner(x0, y0),
-            corner(x1, y0),
-            corner(x1, y1),
-            corner(x0, y1),
+        let point = |x: usize, y: usize| (x, y, self.at(x, y));
+        let centre = point(cx, cy);
+        let ring = [point(x0, y0), point(x1, y0), point(x1, y1), point(x0, y1)];
+        let mid = [
+            (x0 + half < x1).then(|| point(x0 + half, y0)),
+            (y0 + half < y1).then(|| point(x1, y0 + half)),
+            (x0 + half < x1).then(|| point(x0 + half, y1)),
+            (y0 + half < y1).then(|| point(x0, y0 + half)),
         ];
-        let mut worst = 0.0f64;
+        let worst = |triangles: &[[(usize, usize, f64); 3]]| {
+            let mut worst = 0.0f64;
+            for &t in triangles {
+                rasterise_triangle(self.width, t, |s, z| {
+                    worst = worst.max((z - self.values[s]).abs())
+                });
+            }
+            worst
+        };
+        let mut out = [[f64::INFINITY; 2]; 4];
         for k in 0..4 {
-            rasterise_triangle(
-                self.width,
-                [corner(cx, cy), ring[k], ring[(k + 1) % 4]],
-                |s, z| worst = worst.max((z - self.values[s]).abs()),
-            );
+            let (a, b) = (ring[k], ring[(k + 1) % 4]);
+            out[k][0] = worst(&[[centre, a, b]]);
+            if let Some(m) = mid[k] {
+                out[k][1] = worst(&[[centre, a, m], [centre, m, b]]);
+            }
         }
-        Some(worst)
+        Some(out)
     }
 
     /// Largest |height − two-triangle interpolation| over the samples of cell `bounds`.
     pub fn cell_error(&self, bounds: (usize, usize, usize, usize), diagonal: Diagonal) -> f64 {
+        self.cell_errors(bounds, diagonal).0
+    }
+
+    /// Largest and summed squared |height − two-triangle interpolation| over the samples
+    /// of cell `bounds`.
+    pub fn cell_errors(
+        &self,
+        bounds: (usize, usize, usize, usize),
+        diagonal: Diagonal,
+    ) -> (f64, f64) {
         let (x0, y0, x1, y1) = bounds;
-        let mut worst = 0.0f64;
+        let (mut worst, mut squares) = (0.0f64, 0.0f64);
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let e = (self.interpolate(bounds, diagonal, x, y) - self.at(x, y)).abs();
-                worst = worst.max(e);
+                let e = self.interpolate(bounds, diagonal, x, y) - self.at(x, y);
+                worst = worst.max(e.abs());
+                squares += e * e;
             }
         }
-        worst
+        (worst, squares)
     }
 }
 
@@ -216,10 +245,43 @@ pub enum Shape {
 #[derive(Debug, Clone)]
 pub struct ErrorPyramid {
     width: usize,
-    /// Index `m − 1` for level `m`: per node (two-triangle error, fan error).
-    levels: Vec<Vec<(f32, f32)>>,
-    /// Per level, per node: whether the two triangles use the rising diagonal.
-    rising: Vec<BitVec<u64, Lsb0>>,
+    /// Index `m − 1` for level `m`: per node, the errors of its shapes.
+    levels: Vec<Vec<NodeErrors>>,
+}
+
+/// The errors of one node's shapes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct NodeErrors {
+    /// Two triangles along the falling and the rising diagonal.
+    two: [f32; 2],
+    /// Whether the rising diagonal misses by less in the squared sum (the choice when
+    /// both are within a tolerance).
+    rising_smoother: bool,
+    /// Per side of the fan: without and with the side's midpoint.
+    fan: [[f32; 2]; 4],
+}
+
+impl NodeErrors {
+    const VOID: NodeErrors = NodeErrors {
+        two: [f32::INFINITY; 2],
+        rising_smoother: false,
+        fan: [[f32::INFINITY; 2]; 4],
+    };
+
+    /// The fan's error with midpoints wherever they help.
+    fn fan(&self) -> f32 {
+        self.fan.iter().map(|s| s[0].min(s[1])).fold(0.0, f32::max)
+    }
+
+    /// The better diagonal's error.
+    fn two(&self) -> f32 {
+        self.two[0].min(self.two[1])
+    }
+
+    /// The better shape's error.
+    fn best(&self) -> f32 {
+        self.two().min(self.fan())
+    }
 }
 
 /// `e` rounded up to an `f32`, so that a stored value ≤ E proves the error ≤ E.
@@ -237,80 +299,93 @@ impl ErrorPyramid {
     pub fn new(heights: Heights<'_>, levels: u32, voids: Option<&VoidPyramid>) -> ErrorPyramid {
         let (width, height) = (heights.width, heights.height);
         let mut pyramid = Vec::with_capacity(levels as usize);
-        let mut diagonals = Vec::with_capacity(levels as usize);
         for m in 1..=levels {
             let (nw, nh) = (nodes_along(width, m), nodes_along(height, m));
-            let mut errors = vec![(f32::INFINITY, f32::INFINITY); nw * nh];
-            let mut rising = bitvec![u64, Lsb0; 0; nw * nh];
+            let mut errors = vec![NodeErrors::VOID; nw * nh];
             for j in 0..nh {
                 for i in 0..nw {
                     if voids.is_some_and(|v| v.is_void(m, i, j)) {
                         continue;
                     }
                     let bounds = node_bounds(width, height, m, i, j);
-                    let falling = heights.cell_error(bounds, Diagonal::Falling);
-                    let rises = heights.cell_error(bounds, Diagonal::Rising);
-                    let two = falling.min(rises);
-                    let fan = heights.fan_error(bounds).unwrap_or(f64::INFINITY);
-                    errors[j * nw + i] = (round_up(two), round_up(fan));
-                    rising.set(j * nw + i, rises < falling);
+                    let falling = heights.cell_errors(bounds, Diagonal::Falling);
+                    let rising = heights.cell_errors(bounds, Diagonal::Rising);
+                    let fan = heights
+                        .fan_side_errors(bounds, m)
+                        .unwrap_or([[f64::INFINITY; 2]; 4]);
+                    errors[j * nw + i] = NodeErrors {
+                        two: [round_up(falling.0), round_up(rising.0)],
+                        rising_smoother: rising.1 < falling.1,
+                        fan: fan.map(|side| side.map(round_up)),
+                    };
                 }
             }
             pyramid.push(errors);
-            diagonals.push(rising);
         }
         ErrorPyramid {
             width,
             levels: pyramid,
-            rising: diagonals,
         }
     }
 
-    /// The smaller error of node `(level, i, j)`'s two shapes (`level ≥ 1`).
+    /// The smaller error of node `(level, i, j)`'s two shapes, the fan with midpoints
+    /// wherever they help (`level ≥ 1`).
     #[inline]
     pub fn error(&self, level: u32, i: usize, j: usize) -> f32 {
-        let (two, fan) = self.errors(level, i, j);
-        two.min(fan)
+        self.errors(level, i, j).best()
+    }
+
+    /// Whether the fan of node `(level, i, j)` needs the midpoint of `side` (index in
+    /// [`crate::mesh::cells::Side::ALL`]) to be within `tolerance`.
+    pub fn fan_needs_midpoint(
+        &self,
+        level: u32,
+        i: usize,
+        j: usize,
+        side: usize,
+        tolerance: f64,
+    ) -> bool {
+        f64::from(self.errors(level, i, j).fan[side][0]) > tolerance
     }
 
     #[inline]
-    fn errors(&self, level: u32, i: usize, j: usize) -> (f32, f32) {
+    fn errors(&self, level: u32, i: usize, j: usize) -> NodeErrors {
         let nw = nodes_along(self.width, level);
         self.levels[level as usize - 1][j * nw + i]
     }
 
     /// The cheapest shape of node `(level, i, j)` within `tolerance`: two triangles when
-    /// they are within it, else the fan.
+    /// a diagonal is within it (the one with the smaller squared error when both are),
+    /// else the fan.
     pub fn shape_within(&self, level: u32, i: usize, j: usize, tolerance: f64) -> Shape {
-        let (two, _) = self.errors(level, i, j);
-        if f64::from(two) <= tolerance {
-            let nw = nodes_along(self.width, level);
-            Shape::Two(if self.rising[level as usize - 1][j * nw + i] {
-                Diagonal::Rising
-            } else {
-                Diagonal::Falling
-            })
-        } else {
-            Shape::Fan
+        let e = self.errors(level, i, j);
+        let within = e.two.map(|d| f64::from(d) <= tolerance);
+        match within {
+            [true, true] if e.rising_smoother => Shape::Two(Diagonal::Rising),
+            [true, _] => Shape::Two(Diagonal::Falling),
+            [false, true] => Shape::Two(Diagonal::Rising),
+            [false, false] => Shape::Fan,
         }
     }
 
-    /// The largest finite error of a root node: every tolerance at least this leaves the
-    /// roots unsplit (0 for a grid without nodes).
+    /// The largest finite two-triangle error of any node: every tolerance at least this
+    /// draws every node that is not split by nodata as two triangles, the coarsest mesh
+    /// there is (0 for a grid without nodes).
     pub fn top_error(&self) -> f32 {
-        self.levels.last().map_or(0.0, |roots| {
-            roots
-                .iter()
-                .map(|&(two, fan)| two.min(fan))
-                .filter(|e| e.is_finite())
-                .fold(0.0, f32::max)
-        })
+        self.levels
+            .iter()
+            .flatten()
+            .map(NodeErrors::two)
+            .filter(|e| e.is_finite())
+            .fold(0.0, f32::max)
     }
 
     /// Bytes the pyramid holds.
     pub fn heap_bytes(&self) -> usize {
-        self.levels.iter().map(|l| l.len() * 8).sum::<usize>()
-            + self.rising.iter().map(|b| b.capacity() / 8).sum::<usize>()
+        self.levels
+            .iter()
+            .map(|l| l.len() * std::mem::size_of::<NodeErrors>())
+            .sum::<usize>()
     }
 }
 
@@ -349,8 +424,9 @@ mod tests {
         // Along the ridge the error is the edge midpoints' 2.5; across it, the centre's 5.
         assert_eq!(heights.cell_error(bounds, Diagonal::Falling), 2.5);
         assert_eq!(heights.cell_error(bounds, Diagonal::Rising), 5.0);
-        // The fan through the centre leaves only the edge midpoints' 2.5 too.
-        assert_eq!(heights.fan_error(bounds), Some(2.5));
+        // The fan through the centre misses the edge midpoints by 2.5, unless it takes them.
+        let fan = heights.fan_side_errors(bounds, 1).unwrap();
+        assert!(fan.iter().all(|side| side[0] == 2.5 && side[1] == 0.0));
     }
 
     #[test]

@@ -13,18 +13,9 @@
 //! The cost is proportional to the output: each leaf looks at its four same-level
 //! neighbours' split bits and walks down only into split ones.
 
-use super::cells::{Cell, CellTree};
+use super::cells::{Cell, CellTree, Side};
 use super::pyramid::{Diagonal, Heights, Shape};
 use super::GridMesh;
-
-/// One side of a cell.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Top,
-    Right,
-    Bottom,
-    Left,
-}
 
 /// Reusable buffers for triangulating cell after cell.
 #[derive(Debug, Default)]
@@ -36,27 +27,8 @@ pub struct Scratch {
     chain_bc: Vec<u32>,
 }
 
-/// Vertex numbering of grid samples, dense in the order vertices are first used.
-struct VertexIndex {
-    /// `id + 1` per sample, 0 = not a vertex yet (allocated zeroed: the pages a coarse
-    /// mesh never touches cost nothing).
-    ids: Vec<u32>,
-    samples: Vec<u32>,
-}
-
-impl VertexIndex {
-    #[inline]
-    fn id(&mut self, sample: usize) -> u32 {
-        let slot = &mut self.ids[sample];
-        if *slot == 0 {
-            self.samples.push(sample as u32);
-            *slot = self.samples.len() as u32;
-        }
-        *slot - 1
-    }
-}
-
-/// Triangulates every leaf of `tree` in the shape `shape` gives it.
+/// Triangulates every leaf of `tree` in the shape `shape` gives it. Vertices are numbered
+/// in raster order of their samples.
 ///
 /// # Panics
 /// If the grid has more than `u32::MAX` samples or `heights` is not the tree's grid.
@@ -72,10 +44,9 @@ pub fn triangulate(
         u32::try_from(n).is_ok(),
         "grid too large for 32-bit vertex ids"
     );
-    let mut index = VertexIndex {
-        ids: vec![0; n],
-        samples: Vec::new(),
-    };
+    // Pass 1: triangles over sample indices, marking the samples used in a bitmap (an
+    // eighth of a byte a sample: it stays in cache where a per-sample id table would not).
+    let mut used = vec![0u64; n.div_ceil(64)];
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 2 + 16);
     let mut scratch = Scratch::default();
     for &cell in tree.leaves() {
@@ -84,14 +55,39 @@ pub fn triangulate(
             cell,
             shape(cell),
             &mut scratch,
-            &mut |s| index.id(s),
+            &mut |s| {
+                used[s / 64] |= 1 << (s % 64);
+                s as u32
+            },
             &mut |t| triangles.push(t),
         );
+    }
+    // Pass 2: a vertex's id is the rank of its sample among the used ones.
+    let mut rank_before = Vec::with_capacity(used.len());
+    let mut total = 0u32;
+    for &word in &used {
+        rank_before.push(total);
+        total += word.count_ones();
+    }
+    let rank = |s: u32| {
+        let (w, b) = (s as usize / 64, s % 64);
+        rank_before[w] + (used[w] & ((1u64 << b) - 1)).count_ones()
+    };
+    for t in &mut triangles {
+        *t = [rank(t[0]), rank(t[1]), rank(t[2])];
+    }
+    let mut vertices = Vec::with_capacity(total as usize);
+    for (w, &word) in used.iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            vertices.push((w * 64) as u32 + bits.trailing_zeros());
+            bits &= bits - 1;
+        }
     }
     GridMesh {
         width,
         height,
-        vertices: index.samples,
+        vertices,
         triangles,
     }
 }
@@ -131,10 +127,7 @@ pub fn cell_triangles(
         return 0;
     }
     let mut hanging = 0;
-    for (s, side) in [Side::Top, Side::Right, Side::Bottom, Side::Left]
-        .into_iter()
-        .enumerate()
-    {
+    for (s, side) in Side::ALL.into_iter().enumerate() {
         let points = &mut scratch.sides[s];
         points.clear();
         neighbour_points(tree, cell, side, points);
@@ -229,32 +222,21 @@ fn fan_half(ab: &[u32], bc: &[u32], emit: &mut impl FnMut([u32; 3])) {
     }
 }
 
-/// Appends to `points` the coordinates (along `side`, increasing) of the vertices that
-/// the smaller cells across `side` of `cell` put strictly inside that side.
+/// Appends to `points` the coordinates (along `side`, increasing) of the vertices strictly
+/// inside `side` of `cell`: those the smaller cells across it put there, or its marked
+/// midpoint.
 fn neighbour_points(tree: &CellTree, cell: Cell, side: Side, points: &mut Vec<usize>) {
-    let Cell { level, i, j } = cell;
-    let neighbour = match side {
-        Side::Top => j.checked_sub(1).map(|nj| (i, nj)),
-        Side::Right => Some((i + 1, j)),
-        Side::Bottom => Some((i, j + 1)),
-        Side::Left => i.checked_sub(1).map(|ni| (ni, j)),
-    };
-    let Some((ni, nj)) = neighbour else {
-        return;
-    };
-    if !tree.is_split(level, ni, nj) {
-        return;
+    if let Some((ni, nj)) = tree.neighbour(cell, side) {
+        if tree.is_split(cell.level, ni, nj) {
+            collect_side(tree, cell.level, ni, nj, side.opposite(), points);
+            // The last point is the far corner of the shared side, not a hanging vertex.
+            points.pop();
+            return;
+        }
     }
-    // The neighbour faces us with its opposite side.
-    let facing = match side {
-        Side::Top => Side::Bottom,
-        Side::Right => Side::Left,
-        Side::Bottom => Side::Top,
-        Side::Left => Side::Right,
-    };
-    collect_side(tree, level, ni, nj, facing, points);
-    // The last point is the far corner of the shared side, not a hanging vertex.
-    points.pop();
+    if tree.has_midpoint(cell, side) {
+        points.extend(tree.midpoint(cell, side));
+    }
 }
 
 /// Appends the end coordinate (along `side`) of every leaf of split node
