@@ -264,14 +264,9 @@ impl<'a> Mesher<'a> {
             // Cells with vertices on their sides (hanging or midpoints) may now miss.
             for &cell in leaves.iter().filter(|c| c.level > 0) {
                 triangles.clear();
-                let hanging = cell_triangles(
-                    &tree,
-                    cell,
-                    shape(cell),
-                    &mut scratch,
-                    &mut |s| s as u32,
-                    &mut |t| triangles.push(t),
-                );
+                let hanging = cell_triangles(&tree, cell, shape(cell), &mut scratch, &mut |t| {
+                    triangles.push(t)
+                });
                 if hanging == 0 {
                     continue;
                 }

@@ -78,14 +78,15 @@ impl Heights<'_> {
         }
     }
 
-    /// The diagonal of cell `bounds` whose interpolation at the cell's centre sample is
-    /// closer to that sample's height (the falling one on a tie).
+    /// The diagonal of cell `bounds` whose mean of end heights is closer to the height
+    /// of the cell's centre sample (the falling one on a tie): the diagonal that follows
+    /// a ridge or a valley rather than cutting across it.
+    #[inline]
     pub fn diagonal(&self, bounds: (usize, usize, usize, usize)) -> Diagonal {
         let (x0, y0, x1, y1) = bounds;
-        let (cx, cy) = ((x0 + x1) / 2, (y0 + y1) / 2);
-        let h = self.at(cx, cy);
-        let falling = (self.interpolate(bounds, Diagonal::Falling, cx, cy) - h).abs();
-        let rising = (self.interpolate(bounds, Diagonal::Rising, cx, cy) - h).abs();
+        let h = self.at((x0 + x1) / 2, (y0 + y1) / 2);
+        let falling = (0.5 * (self.at(x0, y0) + self.at(x1, y1)) - h).abs();
+        let rising = (0.5 * (self.at(x1, y0) + self.at(x0, y1)) - h).abs();
         if rising < falling {
             Diagonal::Rising
         } else {

@@ -20,11 +20,11 @@ use super::GridMesh;
 /// Reusable buffers for triangulating cell after cell.
 #[derive(Debug, Default)]
 pub struct Scratch {
-    /// Hanging vertices per side, as coordinates along the side (increasing).
-    sides: [Vec<usize>; 4],
-    /// Corner-to-corner boundary chains of the current half.
-    chain_ab: Vec<u32>,
-    chain_bc: Vec<u32>,
+    /// Hanging vertices of the current side, as coordinates along it (increasing).
+    points: Vec<usize>,
+    /// The cell's boundary as sample indices, counter-clockwise in the grid frame from
+    /// the top-left corner, with that corner repeated at the end.
+    ring: Vec<u32>,
 }
 
 /// Triangulates every leaf of `tree` in the shape `shape` gives it. Vertices are numbered
@@ -50,17 +50,12 @@ pub fn triangulate(
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 2 + 16);
     let mut scratch = Scratch::default();
     for &cell in tree.leaves() {
-        cell_triangles(
-            tree,
-            cell,
-            shape(cell),
-            &mut scratch,
-            &mut |s| {
-                used[s / 64] |= 1 << (s % 64);
-                s as u32
-            },
-            &mut |t| triangles.push(t),
-        );
+        cell_triangles(tree, cell, shape(cell), &mut scratch, &mut |t| {
+            for s in t {
+                used[s as usize / 64] |= 1 << (s % 64);
+            }
+            triangles.push(t);
+        });
     }
     // Pass 2: a vertex's id is the rank of its sample among the used ones.
     let mut rank_before = Vec::with_capacity(used.len());
@@ -102,114 +97,84 @@ pub fn centre_rule(tree: &CellTree, heights: Heights<'_>, cell: Cell) -> Shape {
     }
 }
 
-/// Emits the triangles of leaf `cell` in `shape` as triples of whatever `vertex` maps a
-/// sample index to, counter-clockwise in the grid frame; returns the number of hanging
-/// vertices (the triangles are 2 or 4, by shape, plus that).
+/// Emits the triangles of leaf `cell` in `shape` as triples of sample indices,
+/// counter-clockwise in the grid frame; returns the number of hanging vertices (the
+/// triangles are 2 or 4, by shape, plus that).
 pub fn cell_triangles(
     tree: &CellTree,
     cell: Cell,
     shape: Shape,
     scratch: &mut Scratch,
-    vertex: &mut impl FnMut(usize) -> u32,
     emit: &mut impl FnMut([u32; 3]),
 ) -> usize {
     let (width, _) = tree.size();
-    let bounds = tree.bounds(cell);
-    let (x0, y0, x1, y1) = bounds;
-    let sample = |x: usize, y: usize| y * width + x;
+    let (x0, y0, x1, y1) = tree.bounds(cell);
+    let sample = |x: usize, y: usize| (y * width + x) as u32;
+    let (tl, tr) = (sample(x0, y0), sample(x1, y0));
+    let (bl, br) = (sample(x0, y1), sample(x1, y1));
     if cell.level == 0 {
         // No neighbour is smaller than a grid cell: two triangles (the diagonal does not
         // change the height at any sample).
-        let (tl, tr) = (vertex(sample(x0, y0)), vertex(sample(x1, y0)));
-        let (bl, br) = (vertex(sample(x0, y1)), vertex(sample(x1, y1)));
         emit([tl, tr, br]);
         emit([br, bl, tl]);
         return 0;
     }
-    let mut hanging = 0;
+    // The ring: each side's corner, then its hanging vertices in ring order.
+    let ring = &mut scratch.ring;
+    ring.clear();
+    let mut corners = [0usize; 5];
     for (s, side) in Side::ALL.into_iter().enumerate() {
-        let points = &mut scratch.sides[s];
+        corners[s] = ring.len();
+        let points = &mut scratch.points;
         points.clear();
         neighbour_points(tree, cell, side, points);
-        hanging += points.len();
+        match side {
+            Side::Top => {
+                ring.push(tl);
+                ring.extend(points.iter().map(|&x| sample(x, y0)));
+            }
+            Side::Right => {
+                ring.push(tr);
+                ring.extend(points.iter().map(|&y| sample(x1, y)));
+            }
+            Side::Bottom => {
+                ring.push(br);
+                ring.extend(points.iter().rev().map(|&x| sample(x, y1)));
+            }
+            Side::Left => {
+                ring.push(bl);
+                ring.extend(points.iter().rev().map(|&y| sample(x0, y)));
+            }
+        }
     }
-    let diagonal = match shape {
-        Shape::Two(diagonal) => diagonal,
+    corners[4] = ring.len();
+    ring.push(tl);
+    let hanging = corners[4] - 4;
+    let side = |s: usize| &ring[corners[s]..=corners[s + 1]];
+    match shape {
         Shape::Fan => {
-            let ring = &mut scratch.chain_ab;
-            ring.clear();
-            let corner = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
-            for (s, &(cx, cy)) in corner.iter().enumerate() {
-                ring.push(vertex(sample(cx, cy)));
-                let points = &scratch.sides[s];
-                match s {
-                    0 => ring.extend(points.iter().map(|&x| vertex(sample(x, y0)))),
-                    1 => ring.extend(points.iter().map(|&y| vertex(sample(x1, y)))),
-                    2 => ring.extend(points.iter().rev().map(|&x| vertex(sample(x, y1)))),
-                    _ => ring.extend(points.iter().rev().map(|&y| vertex(sample(x0, y)))),
-                }
-            }
-            let centre = vertex(sample((x0 + x1) / 2, (y0 + y1) / 2));
-            for k in 0..ring.len() {
-                emit([ring[k], ring[(k + 1) % ring.len()], centre]);
-            }
-            return hanging;
-        }
-    };
-    if hanging == 0 {
-        let (tl, tr) = (vertex(sample(x0, y0)), vertex(sample(x1, y0)));
-        let (bl, br) = (vertex(sample(x0, y1)), vertex(sample(x1, y1)));
-        match diagonal {
-            Diagonal::Falling => {
-                emit([tl, tr, br]);
-                emit([br, bl, tl]);
-            }
-            Diagonal::Rising => {
-                emit([tr, br, bl]);
-                emit([bl, tl, tr]);
+            let centre = sample((x0 + x1) / 2, (y0 + y1) / 2);
+            for pair in ring.windows(2) {
+                emit([pair[0], pair[1], centre]);
             }
         }
-        return 0;
-    }
-    // Boundary chains, counter-clockwise in the grid frame: top left → right, right top →
-    // bottom, bottom right → left, left bottom → top. Each chain runs corner to corner.
-    let corner = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
-    let chain = |s: usize, out: &mut Vec<u32>, vertex: &mut dyn FnMut(usize) -> u32| {
-        out.clear();
-        let (cx, cy) = corner[s];
-        out.push(vertex(sample(cx, cy)));
-        let points = &scratch.sides[s];
-        match s {
-            0 => out.extend(points.iter().map(|&x| vertex(sample(x, y0)))),
-            1 => out.extend(points.iter().map(|&y| vertex(sample(x1, y)))),
-            2 => out.extend(points.iter().rev().map(|&x| vertex(sample(x, y1)))),
-            _ => out.extend(points.iter().rev().map(|&y| vertex(sample(x0, y)))),
+        Shape::Two(Diagonal::Falling) => {
+            fan_half(side(0), side(1), emit);
+            fan_half(side(2), side(3), emit);
         }
-        let (nx, ny) = corner[(s + 1) % 4];
-        out.push(vertex(sample(nx, ny)));
-    };
-    // Halves as (first side, second side): A = start of the first, B = the corner
-    // between, C = end of the second.
-    let halves = match diagonal {
-        Diagonal::Falling => [(0, 1), (2, 3)],
-        Diagonal::Rising => [(1, 2), (3, 0)],
-    };
-    for (first, second) in halves {
-        let mut ab = std::mem::take(&mut scratch.chain_ab);
-        let mut bc = std::mem::take(&mut scratch.chain_bc);
-        chain(first, &mut ab, vertex);
-        chain(second, &mut bc, vertex);
-        fan_half(&ab, &bc, emit);
-        scratch.chain_ab = ab;
-        scratch.chain_bc = bc;
+        Shape::Two(Diagonal::Rising) => {
+            fan_half(side(1), side(2), emit);
+            fan_half(side(3), side(0), emit);
+        }
     }
     hanging
 }
 
 /// Triangulates the half-cell bounded by chains `ab` (A … B) and `bc` (B … C) and the
 /// diagonal C → A.
+#[inline]
 fn fan_half(ab: &[u32], bc: &[u32], emit: &mut impl FnMut([u32; 3])) {
-    let c = *bc.last().expect("chains hold their corners");
+    let c = bc[bc.len() - 1];
     // Fan from C over A, a₁, …, a_last.
     let last = ab.len() - 2;
     for k in 0..last {
@@ -217,8 +182,8 @@ fn fan_half(ab: &[u32], bc: &[u32], emit: &mut impl FnMut([u32; 3])) {
     }
     // Fan from a_last (A when AB has no hanging vertex) over B, b₁, …, C.
     let pivot = ab[last];
-    for k in 0..bc.len() - 1 {
-        emit([pivot, bc[k], bc[k + 1]]);
+    for pair in bc.windows(2) {
+        emit([pivot, pair[0], pair[1]]);
     }
 }
 
