@@ -182,13 +182,20 @@ pub enum TableRows {
     AllPasses,
 }
 
+/// The median of `values` (sorted in place; 0 when empty).
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
+}
+
 /// The seed paper's tables for `original`, encoded as `encoded` (any mode), one row per
-/// entry of `rows`, with the split `rule`.
+/// entry of `rows`, with the split `rule`; times are medians of `runs` repetitions.
 pub fn paper_table(
     original: &Raster,
     encoded: &Encoded,
     rows: &TableRows,
     rule: SplitRule,
+    runs: usize,
 ) -> Result<Vec<TableRow>, CodecError> {
     let header = &encoded.header;
     let payload_start = (encoded.header_len + header.mask_len as usize) as u64;
@@ -232,12 +239,19 @@ pub fn paper_table(
         };
         let surface = Surface::of(&decoded.raster);
         let mesher = Mesher::new(map, surface.heights(), &surface.valid);
-        let start = Instant::now();
-        let tree = mesher.cells_at_plane(plane, rule);
-        let search_seconds = start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        let mesh = mesher.triangulate(&tree);
-        let triangulation_seconds = start.elapsed().as_secs_f64();
+        // Times are medians of `runs` searches and triangulations.
+        let (mut searches, mut triangulations) = (Vec::new(), Vec::new());
+        let mut mesh = GridMesh::default();
+        for _ in 0..runs.max(1) {
+            let start = Instant::now();
+            let tree = mesher.cells_at_plane(plane, rule);
+            searches.push(start.elapsed().as_secs_f64());
+            let start = Instant::now();
+            mesh = mesher.triangulate(&tree);
+            triangulations.push(start.elapsed().as_secs_f64());
+        }
+        let search_seconds = median(&mut searches);
+        let triangulation_seconds = median(&mut triangulations);
         let error = mesh_error(
             &mesh,
             &surface.heights,

@@ -276,6 +276,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         &lossless,
         &TableRows::AllPasses,
         SplitRule::Zerotree,
+        3,
     )
     .map_err(|e| CliError::Stream(PathBuf::from("5/3 lossless"), e))?;
 

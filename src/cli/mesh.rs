@@ -411,6 +411,9 @@ pub struct TableArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "md")]
     format: TableFormat,
+    /// Time each row's search and triangulation this many times (medians are reported).
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
     #[command(flatten)]
     input_args: InputArgs,
 }
@@ -464,7 +467,7 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         RuleArg::Own => SplitRule::OwnCoefficients,
     };
     let table = with_progress("measuring", || {
-        lod::paper_table(&raster, &encoded, &rows, rule)
+        lod::paper_table(&raster, &encoded, &rows, rule, args.runs)
     })
     .map_err(|e| CliError::Stream(args.input.clone(), e))?;
     match args.format {
