@@ -526,7 +526,6 @@ fn unknown_mesh_extensions_are_refused_and_write_nothing() {
 }
 
 #[test]
-#[ignore = "known bug: decode writes -o before it checks the --mesh extension (src/cli/coding.rs)"]
 fn decode_with_an_unknown_mesh_extension_writes_no_dem() {
     let dir = scratch();
     let ezw = dir.path().join("fault.ezw");

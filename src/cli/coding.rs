@@ -342,6 +342,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         if mesh == &args.output {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
+        args.mesh_options.check(mesh)?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =

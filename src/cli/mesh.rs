@@ -83,6 +83,19 @@ impl MeshOptions {
             && self.z_scale == 1.0
     }
 
+    /// Checks the options and the output path before any work is done, so that a bad
+    /// mesh argument leaves no other output behind either.
+    pub fn check(&self, path: &Path) -> Result<(), CliError> {
+        mesh_format(path)?;
+        if path.is_dir() {
+            return Err(CliError::Output(
+                path.to_path_buf(),
+                "is a directory".into(),
+            ));
+        }
+        self.target(0).map(|_| ())
+    }
+
     fn rule(&self) -> SplitRule {
         match self.rule {
             RuleArg::Zerotree => SplitRule::Zerotree,
@@ -244,6 +257,16 @@ pub fn mesh_decoded(
         measure_seconds,
         write_seconds,
         file_bytes: std::fs::metadata(path).map_or(0, |m| m.len()),
+    })
+}
+
+/// The mesh format of `path`'s extension.
+fn mesh_format(path: &Path) -> Result<MeshFormat, CliError> {
+    MeshFormat::from_path(path).ok_or_else(|| {
+        CliError::Usage(format!(
+            "{}: unknown mesh format (use .glb, .obj or .ply)",
+            path.display()
+        ))
     })
 }
 
