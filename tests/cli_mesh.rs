@@ -503,7 +503,7 @@ fn unknown_mesh_extensions_are_refused_and_write_nothing() {
     }
     assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 
-    // decode --mesh: no mesh file either (see the ignored test below for the DEM).
+    // decode --mesh: neither the mesh nor the DEM.
     let ezw = dir.path().join("fault.ezw");
     stdout(&["encode", s(&input), "-o", s(&ezw)]);
     let mesh = dir.path().join("m.stl");
@@ -520,6 +520,7 @@ fn unknown_mesh_extensions_are_refused_and_write_nothing() {
     );
     assert!(error.contains("unknown mesh format"), "{error}");
     assert!(!mesh.exists());
+    assert!(!dir.path().join("out.tif").exists());
     assert!(!entries(dir.path())
         .iter()
         .any(|n| n.contains("wavemesh-tmp")));
