@@ -213,6 +213,14 @@ pub fn mesh_decoded(
         build_mesh(map, &surface, target, options.rule(), base_plane)
     });
     let mesh = &timed_mesh.mesh;
+    if let MeshTarget::Triangles(n) | MeshTarget::TrianglesByTolerance(n) = target {
+        if mesh.triangles.len() > n {
+            eprintln!(
+                "wavemesh: warning: no mesh has at most {n} triangles (nodata and the coarsest cells force {}); writing the coarsest",
+                mesh.triangles.len()
+            );
+        }
+    }
     let start = Instant::now();
     let error_vs_decoded = mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid);
     let error_vs_original = original.map(|o| {

@@ -33,9 +33,27 @@ pub struct Cell {
     /// Quadtree level: the cell spans `2^level` grid cells a side (less at the far edges).
     pub level: u32,
     /// Column of the node at its level.
-    pub i: usize,
+    pub i: u32,
     /// Row of the node at its level.
-    pub j: usize,
+    pub j: u32,
+}
+
+impl Cell {
+    /// Node `(level, i, j)`.
+    #[inline]
+    pub fn new(level: u32, i: usize, j: usize) -> Cell {
+        Cell {
+            level,
+            i: i as u32,
+            j: j as u32,
+        }
+    }
+
+    /// Column and row of the node at its level.
+    #[inline]
+    pub fn position(self) -> (usize, usize) {
+        (self.i as usize, self.j as usize)
+    }
 }
 
 /// One side of a cell.
@@ -168,16 +186,13 @@ impl CellTree {
         let mut stack: Vec<Cell> = Vec::with_capacity(4 * self.levels as usize + 4);
         for j in (0..rh).rev() {
             for i in (0..rw).rev() {
-                stack.push(Cell {
-                    level: self.levels,
-                    i,
-                    j,
-                });
+                stack.push(Cell::new(self.levels, i, j));
             }
         }
         while let Some(cell) = stack.pop() {
             self.visited += 1;
-            let Cell { level, i, j } = cell;
+            let level = cell.level;
+            let (i, j) = cell.position();
             let void = voids.is_some_and(|v| v.is_void(level, i, j));
             if level == 0 {
                 if !void {
@@ -202,20 +217,12 @@ impl CellTree {
                 for (ci, cj) in children {
                     self.visited += 1;
                     if !voids.is_some_and(|v| v.is_void(0, ci, cj)) {
-                        self.leaves.push(Cell {
-                            level: 0,
-                            i: ci,
-                            j: cj,
-                        });
+                        self.leaves.push(Cell::new(0, ci, cj));
                     }
                 }
             } else {
                 let start = stack.len();
-                stack.extend(children.map(|(ci, cj)| Cell {
-                    level: level - 1,
-                    i: ci,
-                    j: cj,
-                }));
+                stack.extend(children.map(|(ci, cj)| Cell::new(level - 1, ci, cj)));
                 stack[start..].reverse();
             }
         }
@@ -224,7 +231,8 @@ impl CellTree {
     /// Splits leaf `cell` (its children are leaves until the next [`CellTree::grow`]).
     pub fn force_split(&mut self, cell: Cell) {
         if cell.level > 0 {
-            let k = self.node_index(cell.level, cell.i, cell.j);
+            let (i, j) = cell.position();
+            let k = self.node_index(cell.level, i, j);
             self.split[cell.level as usize - 1][k / 64] |= 1 << (k % 64);
         }
     }
@@ -249,7 +257,7 @@ impl CellTree {
 
     /// The same-level node across `side` of `cell` (which may not exist).
     pub fn neighbour(&self, cell: Cell, side: Side) -> Option<(usize, usize)> {
-        let Cell { i, j, .. } = cell;
+        let (i, j) = cell.position();
         match side {
             Side::Top => j.checked_sub(1).map(|nj| (i, nj)),
             Side::Right => Some((i + 1, j)),
@@ -275,7 +283,7 @@ impl CellTree {
 
     fn midpoint_bit(&self, cell: Cell, side: Side) -> (bool, usize) {
         let (nw, _) = self.nodes(cell.level);
-        let Cell { i, j, .. } = cell;
+        let (i, j) = cell.position();
         match side {
             Side::Top => (true, j * nw + i),
             Side::Bottom => (true, (j + 1) * nw + i),
@@ -377,7 +385,8 @@ impl CellTree {
     /// Closed sample range `(x0, y0, x1, y1)` of `cell`.
     #[inline]
     pub fn bounds(&self, cell: Cell) -> (usize, usize, usize, usize) {
-        node_bounds(self.width, self.height, cell.level, cell.i, cell.j)
+        let (i, j) = cell.position();
+        node_bounds(self.width, self.height, cell.level, i, j)
     }
 
     /// Bytes the partition holds (split bits and leaves).

@@ -228,7 +228,7 @@ impl<'a> Mesher<'a> {
             if cell.level == 0 {
                 Shape::Two(pyramid::Diagonal::Falling)
             } else {
-                errors.shape_within(cell.level, cell.i, cell.j, tolerance)
+                errors.shape_within(cell.level, cell.i as usize, cell.j as usize, tolerance)
             }
         };
         let (width, height) = (heights.width, heights.height);
@@ -248,7 +248,8 @@ impl<'a> Mesher<'a> {
                     continue;
                 }
                 for (k, side) in Side::ALL.into_iter().enumerate() {
-                    if !errors.fan_needs_midpoint(cell.level, cell.i, cell.j, k, tolerance) {
+                    let (i, j) = cell.position();
+                    if !errors.fan_needs_midpoint(cell.level, i, j, k, tolerance) {
                         continue;
                     }
                     match tree.across(cell, side) {

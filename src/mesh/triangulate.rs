@@ -228,12 +228,7 @@ fn collect_side(
         if tree.is_split(level - 1, ci, cj) {
             collect_side(tree, level - 1, ci, cj, side, points);
         } else {
-            let child = Cell {
-                level: level - 1,
-                i: ci,
-                j: cj,
-            };
-            let (_, _, x1, y1) = tree.bounds(child);
+            let (_, _, x1, y1) = tree.bounds(Cell::new(level - 1, ci, cj));
             points.push(match side {
                 Side::Top | Side::Bottom => x1,
                 Side::Left | Side::Right => y1,
