@@ -8,6 +8,7 @@
 use bitvec::prelude::*;
 use wavemesh_codec::significance::nodes_along;
 
+#[cfg(test)]
 use super::rasterise::rasterise_triangle;
 
 /// The closed sample range `(x0, y0, x1, y1)` of node `(level, i, j)` on a
@@ -94,12 +95,14 @@ impl Heights<'_> {
         }
     }
 
-    /// For cell `bounds` of quadtree level `level` drawn as a fan of triangles from its
-    /// centre sample: per side (top, right, bottom, left), the largest |height −
+    /// Reference for [`Heights::node_errors`]: for cell `bounds` of quadtree level `level`
+    /// drawn as a fan of triangles from its centre sample, one rasterisation per triangle:
+    /// per side (top, right, bottom, left), the largest |height −
     /// interpolation| over the samples of that side's triangle, without and with a vertex
     /// at the side's midpoint (infinite where the side has none). `None` when the cell is
     /// too thin to have a centre strictly inside.
-    pub fn fan_side_errors(
+    #[cfg(test)]
+    fn fan_side_errors(
         &self,
         bounds: (usize, usize, usize, usize),
         level: u32,
@@ -139,18 +142,17 @@ impl Heights<'_> {
         Some(out)
     }
 
-    /// Largest |height − two-triangle interpolation| over the samples of cell `bounds`.
-    pub fn cell_error(&self, bounds: (usize, usize, usize, usize), diagonal: Diagonal) -> f64 {
+    /// Reference for [`Heights::node_errors`]: the largest |height − two-triangle
+    /// interpolation| over the samples of cell `bounds`.
+    #[cfg(test)]
+    fn cell_error(&self, bounds: (usize, usize, usize, usize), diagonal: Diagonal) -> f64 {
         self.cell_errors(bounds, diagonal).0
     }
 
     /// Largest and summed squared |height − two-triangle interpolation| over the samples
     /// of cell `bounds`.
-    pub fn cell_errors(
-        &self,
-        bounds: (usize, usize, usize, usize),
-        diagonal: Diagonal,
-    ) -> (f64, f64) {
+    #[cfg(test)]
+    fn cell_errors(&self, bounds: (usize, usize, usize, usize), diagonal: Diagonal) -> (f64, f64) {
         let (x0, y0, x1, y1) = bounds;
         let (mut worst, mut squares) = (0.0f64, 0.0f64);
         for y in y0..=y1 {
@@ -161,6 +163,111 @@ impl Heights<'_> {
             }
         }
         (worst, squares)
+    }
+
+    /// Everything the error pyramid keeps for cell `bounds` of quadtree level `level`, in
+    /// one pass over its samples: per diagonal (falling, rising) the largest and the summed
+    /// squared error of the two-triangle drawing; and, for cells at least two samples wide
+    /// and high, per side of the fan from the centre sample (top, right, bottom, left) the
+    /// largest error of that side's triangle without and with a vertex at the side's
+    /// midpoint (infinite where the side has none).
+    pub fn node_errors(&self, bounds: (usize, usize, usize, usize), level: u32) -> CellErrors {
+        let (x0, y0, x1, y1) = bounds;
+        let (tl, tr) = (self.at(x0, y0), self.at(x1, y0));
+        let (bl, br) = (self.at(x0, y1), self.at(x1, y1));
+        let (inv_w, inv_h) = (1.0 / (x1 - x0) as f64, 1.0 / (y1 - y0) as f64);
+        let mut two = [0.0f64; 2];
+        let mut squares = [0.0f64; 2];
+        let fan_ok = x1 - x0 >= 2 && y1 - y0 >= 2;
+        let mut fan = [[0.0f64; 2]; 4];
+        // Fan geometry, relative to the centre C, in integers.
+        let half = 1i64 << level.saturating_sub(1);
+        let (cx, cy) = (((x0 + x1) / 2) as i64, ((y0 + y1) / 2) as i64);
+        let hc = self.at(cx as usize, cy as usize);
+        let (ix0, iy0, ix1, iy1) = (x0 as i64, y0 as i64, x1 as i64, y1 as i64);
+        let corner = [
+            (ix0, iy0, tl),
+            (ix1, iy0, tr),
+            (ix1, iy1, br),
+            (ix0, iy1, bl),
+        ];
+        let mid_x = (ix0 + half < ix1).then_some(ix0 + half);
+        let mid_y = (iy0 + half < iy1).then_some(iy0 + half);
+        let at = |x: i64, y: i64| (x, y, self.at(x as usize, y as usize));
+        let midpoint = [
+            mid_x.map(|x| at(x, iy0)),
+            mid_y.map(|y| at(ix1, y)),
+            mid_x.map(|x| at(x, iy1)),
+            mid_y.map(|y| at(ix0, y)),
+        ];
+        if !fan_ok {
+            fan = [[f64::INFINITY; 2]; 4];
+        }
+        for (s, m) in midpoint.iter().enumerate() {
+            if m.is_none() {
+                fan[s][1] = f64::INFINITY;
+            }
+        }
+        // (p − C) × (q − C): positive when q is counter-clockwise of p (grid frame).
+        let cross = |(px, py): (i64, i64), (qx, qy): (i64, i64)| px * qy - py * qx;
+        // The height at `p` of the plane through C, a and b.
+        let plane = |p: (i64, i64), a: (i64, i64, f64), b: (i64, i64, f64)| {
+            let (da, db) = ((a.0 - cx, a.1 - cy), (b.0 - cx, b.1 - cy));
+            let area = cross(da, db) as f64;
+            let wa = cross(p, db) as f64;
+            let wb = cross(da, p) as f64;
+            hc + (wa * (a.2 - hc) + wb * (b.2 - hc)) / area
+        };
+        for y in y0..=y1 {
+            let v = (y - y0) as f64 * inv_h;
+            let row = &self.values[y * self.width + x0..=y * self.width + x1];
+            for (x, &h) in (x0..=x1).zip(row) {
+                let u = (x - x0) as f64 * inv_w;
+                let falling = if u >= v {
+                    tl + u * (tr - tl) + v * (br - tr)
+                } else {
+                    tl + v * (bl - tl) + u * (br - bl)
+                };
+                let rising = if u + v <= 1.0 {
+                    tl + u * (tr - tl) + v * (bl - tl)
+                } else {
+                    br + (1.0 - u) * (bl - br) + (1.0 - v) * (tr - br)
+                };
+                for (k, z) in [falling, rising].into_iter().enumerate() {
+                    let e = z - h;
+                    two[k] = two[k].max(e.abs());
+                    squares[k] += e * e;
+                }
+                if !fan_ok {
+                    continue;
+                }
+                let p = (x as i64 - cx, y as i64 - cy);
+                // The wedge between the rays to corner s and corner s + 1.
+                let s = (0..4)
+                    .find(|&s| {
+                        let (a, b) = (corner[s], corner[(s + 1) % 4]);
+                        cross((a.0 - cx, a.1 - cy), p) >= 0 && cross(p, (b.0 - cx, b.1 - cy)) >= 0
+                    })
+                    .unwrap_or(0);
+                let (a, b) = (corner[s], corner[(s + 1) % 4]);
+                let e = (plane(p, a, b) - h).abs();
+                fan[s][0] = fan[s][0].max(e);
+                if let Some(m) = midpoint[s] {
+                    let dm = (m.0 - cx, m.1 - cy);
+                    let z = if cross(p, dm) >= 0 {
+                        plane(p, a, m)
+                    } else {
+                        plane(p, m, b)
+                    };
+                    fan[s][1] = fan[s][1].max((z - h).abs());
+                }
+            }
+        }
+        CellErrors {
+            two,
+            two_squares: squares,
+            fan: fan_ok.then_some(fan),
+        }
     }
 }
 
@@ -228,6 +335,18 @@ impl VoidPyramid {
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
     }
+}
+
+/// A cell's errors in every shape, from [`Heights::node_errors`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellErrors {
+    /// Largest error of the two triangles along the falling and the rising diagonal.
+    pub two: [f64; 2],
+    /// Summed squared errors of the same.
+    pub two_squares: [f64; 2],
+    /// Per side of the fan, largest error without and with the side's midpoint; `None`
+    /// for cells too thin to have a centre strictly inside.
+    pub fan: Option<[[f64; 2]; 4]>,
 }
 
 /// How a leaf cell is cut into triangles (before its hanging vertices are added).
@@ -309,14 +428,11 @@ impl ErrorPyramid {
                         continue;
                     }
                     let bounds = node_bounds(width, height, m, i, j);
-                    let falling = heights.cell_errors(bounds, Diagonal::Falling);
-                    let rising = heights.cell_errors(bounds, Diagonal::Rising);
-                    let fan = heights
-                        .fan_side_errors(bounds, m)
-                        .unwrap_or([[f64::INFINITY; 2]; 4]);
+                    let e = heights.node_errors(bounds, m);
+                    let fan = e.fan.unwrap_or([[f64::INFINITY; 2]; 4]);
                     errors[j * nw + i] = NodeErrors {
-                        two: [round_up(falling.0), round_up(rising.0)],
-                        rising_smoother: rising.1 < falling.1,
+                        two: e.two.map(round_up),
+                        rising_smoother: e.two_squares[1] < e.two_squares[0],
                         fan: fan.map(|side| side.map(round_up)),
                     };
                 }
@@ -426,8 +542,63 @@ mod tests {
         assert_eq!(heights.cell_error(bounds, Diagonal::Falling), 2.5);
         assert_eq!(heights.cell_error(bounds, Diagonal::Rising), 5.0);
         // The fan through the centre misses the edge midpoints by 2.5, unless it takes them.
-        let fan = heights.fan_side_errors(bounds, 1).unwrap();
+        let fan = heights.node_errors(bounds, 1).fan.unwrap();
         assert!(fan.iter().all(|side| side[0] == 2.5 && side[1] == 0.0));
+    }
+
+    #[test]
+    fn one_pass_errors_match_the_reference() {
+        let (w, h) = (23, 19);
+        let mut seed = 7u64;
+        let values: Vec<f64> = (0..w * h)
+            .map(|_| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 40) as f64 / 1000.0
+            })
+            .collect();
+        let heights = Heights {
+            width: w,
+            height: h,
+            values: &values,
+        };
+        for level in 1..=4 {
+            for j in 0..nodes_along(h, level) {
+                for i in 0..nodes_along(w, level) {
+                    let bounds = node_bounds(w, h, level, i, j);
+                    let fast = heights.node_errors(bounds, level);
+                    for (k, d) in [Diagonal::Falling, Diagonal::Rising]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let (max, sq) = heights.cell_errors(bounds, d);
+                        assert!((fast.two[k] - max).abs() < 1e-9, "{bounds:?} {d:?}");
+                        assert!((fast.two_squares[k] - sq).abs() < 1e-6 * sq.max(1.0));
+                    }
+                    let reference = heights.fan_side_errors(bounds, level);
+                    match (fast.fan, reference) {
+                        (None, None) => {}
+                        (Some(a), Some(b)) => {
+                            // Samples on a ray from the centre belong to one side here and
+                            // to both in the reference, with the same height: the fan's
+                            // error for every choice of midpoints must agree.
+                            for choice in 0..16 {
+                                let worst = |e: &[[f64; 2]; 4]| {
+                                    (0..4).map(|s| e[s][(choice >> s) & 1]).fold(0.0, f64::max)
+                                };
+                                let (x, y) = (worst(&a), worst(&b));
+                                assert!(
+                                    x == y || (x - y).abs() < 1e-9,
+                                    "{bounds:?} midpoints {choice:04b}: {x} vs {y}"
+                                );
+                            }
+                        }
+                        other => panic!("{bounds:?}: {other:?}"),
+                    }
+                }
+            }
+        }
     }
 
     #[test]
