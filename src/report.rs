@@ -607,7 +607,8 @@ pub struct MeshComparison {
     pub peer_rmse: f64,
     /// The peer's true max error, data units.
     pub peer_max_error: f64,
-    /// Our mesh within that budget, searched over height tolerances.
+    /// Our best mesh within that budget: searched over height tolerances, or the one at
+    /// the peer's parameter when that fits the budget and misses less.
     pub ours_triangles: usize,
     /// Its RMSE, data units.
     pub ours_rmse: f64,
@@ -697,11 +698,18 @@ pub fn compare_meshes(
                 SplitRule::Zerotree,
                 None,
             );
-            let (b, z, a) = (
+            let (mut b, z, a) = (
                 measure(&budget.mesh),
                 measure(&zerotree.mesh),
                 measure(&at_parameter.mesh),
             );
+            // The tolerance search cannot always land on the budget exactly; the mesh at
+            // the peer's own parameter is a mesh within the budget too when it fits.
+            let mut ours_triangles = budget.mesh.triangles.len();
+            if at_parameter.mesh.triangles.len() <= peer.triangles && a.rmse < b.rmse {
+                b = a;
+                ours_triangles = at_parameter.mesh.triangles.len();
+            }
             out.push(MeshComparison {
                 dem: dataset.name.clone(),
                 region: region.to_string(),
@@ -710,7 +718,7 @@ pub fn compare_meshes(
                 peer_triangles: peer.triangles,
                 peer_rmse: peer.rmse,
                 peer_max_error: peer.maxerr,
-                ours_triangles: budget.mesh.triangles.len(),
+                ours_triangles,
                 ours_rmse: b.rmse,
                 ours_max_error: b.max_error,
                 zerotree_triangles: zerotree.mesh.triangles.len(),
