@@ -205,7 +205,7 @@ fn garbage_and_damage_give_errors_or_images_never_panics() {
     let raster = terrain(23, 17, SampleType::I16, 3, 500.0);
     let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
     let mut tried = 0;
-    // Bit flips at every position.
+    // Bit flips at every byte (bits 0, 3 and 7: low, middle and high of each byte).
     for i in 0..encoded.bytes.len() {
         for bit in [0, 3, 7] {
             let mut damaged = encoded.bytes.clone();
