@@ -120,17 +120,8 @@ pub fn mesh_error(
         compared_samples: compared,
         uncovered_samples: uncovered,
         rmse,
-        psnr_db: psnr(hi - lo, rmse),
+        psnr_db: crate::metrics::psnr(hi - lo, rmse),
         max_error,
-    }
-}
-
-/// 20·log10(range / rmse), `inf` for an exact fit.
-pub fn psnr(range: f64, rmse: f64) -> f64 {
-    if rmse == 0.0 {
-        f64::INFINITY
-    } else {
-        20.0 * (range / rmse).log10()
     }
 }
 
