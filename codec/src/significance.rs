@@ -165,11 +165,6 @@ impl SignificanceMap {
     pub fn top(&self) -> u8 {
         self.subtree.iter().copied().max().unwrap_or(0)
     }
-
-    /// Bytes the map holds (two per node).
-    pub fn heap_bytes(&self) -> usize {
-        self.own.len() + self.subtree.len() + self.offsets.len() * std::mem::size_of::<usize>()
-    }
 }
 
 #[cfg(test)]

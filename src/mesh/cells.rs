@@ -114,8 +114,6 @@ pub struct CellTree {
     midpoints: Vec<(BitVec<u64, Lsb0>, BitVec<u64, Lsb0>)>,
     /// The leaves, void level-0 cells excluded, in depth-first order.
     leaves: Vec<Cell>,
-    /// Nodes visited to find the leaves.
-    visited: usize,
 }
 
 impl CellTree {
@@ -143,7 +141,6 @@ impl CellTree {
             split,
             midpoints: Vec::new(),
             leaves: Vec::new(),
-            visited: 0,
         };
         tree.grow(voids, test);
         tree
@@ -181,7 +178,6 @@ impl CellTree {
         mut test: impl FnMut(u32, usize, usize) -> bool,
     ) {
         self.leaves.clear();
-        self.visited = 0;
         let (rw, rh) = self.nodes(self.levels);
         let mut stack: Vec<Cell> = Vec::with_capacity(4 * self.levels as usize + 4);
         for j in (0..rh).rev() {
@@ -190,7 +186,6 @@ impl CellTree {
             }
         }
         while let Some(cell) = stack.pop() {
-            self.visited += 1;
             let level = cell.level;
             let (i, j) = cell.position();
             let void = voids.is_some_and(|v| v.is_void(level, i, j));
@@ -215,7 +210,6 @@ impl CellTree {
             if level == 1 {
                 // Grid cells are leaves: no need to go through the stack.
                 for (ci, cj) in children {
-                    self.visited += 1;
                     if !voids.is_some_and(|v| v.is_void(0, ci, cj)) {
                         self.leaves.push(Cell::new(0, ci, cj));
                     }
@@ -367,11 +361,6 @@ impl CellTree {
         &self.leaves
     }
 
-    /// Nodes the last descent visited (the search cost).
-    pub fn visited(&self) -> usize {
-        self.visited
-    }
-
     /// Grid size.
     pub fn size(&self) -> (usize, usize) {
         (self.width, self.height)
@@ -387,12 +376,6 @@ impl CellTree {
     pub fn bounds(&self, cell: Cell) -> (usize, usize, usize, usize) {
         let (i, j) = cell.position();
         node_bounds(self.width, self.height, cell.level, i, j)
-    }
-
-    /// Bytes the partition holds (split bits and leaves).
-    pub fn heap_bytes(&self) -> usize {
-        self.split.iter().map(|b| b.capacity() * 8).sum::<usize>()
-            + self.leaves.capacity() * std::mem::size_of::<Cell>()
     }
 }
 

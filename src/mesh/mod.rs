@@ -13,6 +13,14 @@ pub mod pyramid;
 pub mod rasterise;
 pub mod triangulate;
 
+use bitvec::prelude::*;
+use wavemesh_codec::SignificanceMap;
+
+use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
+use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
+use rasterise::rasterise_triangle;
+use triangulate::{cell_triangles, Scratch};
+
 /// A triangle mesh over a `width × height` sample grid: every vertex is a grid sample.
 ///
 /// Triangles wind counter-clockwise in the grid frame (x = column, y = row, z up): for
@@ -41,14 +49,6 @@ impl GridMesh {
         self.vertices.len() * 4 + self.triangles.len() * 12
     }
 }
-
-use bitvec::prelude::*;
-use wavemesh_codec::SignificanceMap;
-
-use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
-use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
-use rasterise::rasterise_triangle;
-use triangulate::{cell_triangles, Scratch};
 
 /// Builds meshes of one decoded grid from its significance map, at any threshold,
 /// triangle budget or height tolerance, without decoding again.
@@ -87,8 +87,6 @@ pub struct MeshResult {
     /// Cells split after triangulation because their hanging vertices took them past the
     /// tolerance.
     pub refinement_splits: usize,
-    /// Refinement rounds.
-    pub refinement_rounds: usize,
 }
 
 impl<'a> Mesher<'a> {
@@ -110,11 +108,6 @@ impl<'a> Mesher<'a> {
             voids,
             errors: None,
         }
-    }
-
-    /// The significance map.
-    pub fn map(&self) -> &SignificanceMap {
-        self.map
     }
 
     /// The heights meshes are built from.
@@ -207,7 +200,6 @@ impl<'a> Mesher<'a> {
             plane: Some(plane),
             tolerance: None,
             refinement_splits: 0,
-            refinement_rounds: 0,
         }
     }
 
@@ -236,7 +228,7 @@ impl<'a> Mesher<'a> {
         let mut tree = CellTree::build(width, height, levels, voids, test);
         let mut scratch = Scratch::default();
         let mut triangles: Vec<[u32; 3]> = Vec::new();
-        let (mut splits, mut rounds) = (0, 0);
+        let mut splits = 0;
         loop {
             let mut failed = Vec::new();
             // Fans take the side midpoints they need; a midpoint shared with a larger
@@ -292,7 +284,6 @@ impl<'a> Mesher<'a> {
             }
             failed.sort_unstable();
             failed.dedup();
-            rounds += 1;
             splits += failed.len();
             for &cell in &failed {
                 tree.force_split(cell);
@@ -306,7 +297,6 @@ impl<'a> Mesher<'a> {
             plane: base_plane,
             tolerance: Some(tolerance),
             refinement_splits: splits,
-            refinement_rounds: rounds,
         }
     }
 }

@@ -496,14 +496,6 @@ impl ErrorPyramid {
             .filter(|e| e.is_finite())
             .fold(0.0, f32::max)
     }
-
-    /// Bytes the pyramid holds.
-    pub fn heap_bytes(&self) -> usize {
-        self.levels
-            .iter()
-            .map(|l| l.len() * std::mem::size_of::<NodeErrors>())
-            .sum::<usize>()
-    }
 }
 
 #[cfg(test)]
