@@ -819,3 +819,36 @@ fn demo_writes_a_mesh_and_prints_the_tables() {
     assert_eq!(markdown_rows(&text, "Table 2").len(), tables.len());
     assert!(text.contains("jacksboro_fault.glb"), "{text}");
 }
+
+#[test]
+fn meshes_larger_than_the_memory_limit_are_refused_before_any_work() {
+    let dir = scratch();
+    let out = dir.path().join("big.glb");
+    let input = sample("jacksboro_fault.tif");
+    // 403 × 344 samples need far more than 100 kB for a mesh.
+    let message = fails(
+        &["mesh", s(&input), "-o", s(&out), "--max-memory", "100000"],
+        2,
+    );
+    assert!(message.contains("--max-memory"), "{message}");
+    assert!(!out.exists());
+    let ezw = dir.path().join("fault.ezw");
+    let dem = dir.path().join("fault.tif");
+    let encode = wavemesh(&["encode", s(&input), "-o", s(&ezw)]);
+    assert!(encode.status.success());
+    let message = fails(
+        &[
+            "decode",
+            s(&ezw),
+            "-o",
+            s(&dem),
+            "--mesh",
+            s(&out),
+            "--max-memory",
+            "1000000",
+        ],
+        2,
+    );
+    assert!(message.contains("--max-memory"), "{message}");
+    assert!(!out.exists() && !dem.exists());
+}

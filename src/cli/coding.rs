@@ -342,7 +342,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         if mesh == &args.output {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
-        args.mesh_options.check(mesh)?;
+        args.mesh_options.check(mesh, samples, args.max_memory)?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =
@@ -372,6 +372,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             &args.mesh_options,
             path,
             reference.as_ref(),
+            args.max_memory,
         )?),
         None => None,
     };

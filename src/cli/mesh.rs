@@ -83,9 +83,10 @@ impl MeshOptions {
             && self.z_scale == 1.0
     }
 
-    /// Checks the options and the output path before any work is done, so that a bad
-    /// mesh argument leaves no other output behind either.
-    pub fn check(&self, path: &Path) -> Result<(), CliError> {
+    /// Checks the options, the output path and the memory a mesh of `samples` samples
+    /// may need before any work is done, so that a bad mesh argument leaves no other
+    /// output behind either.
+    pub fn check(&self, path: &Path, samples: u64, max_memory: u64) -> Result<(), CliError> {
         mesh_format(path)?;
         if path.is_dir() {
             return Err(CliError::Output(
@@ -93,7 +94,14 @@ impl MeshOptions {
                 "is a directory".into(),
             ));
         }
-        self.target(0).map(|_| ())
+        let (target, _) = self.target(0)?;
+        let needed = mesh_memory(samples, target);
+        if needed > max_memory {
+            return Err(CliError::Usage(format!(
+                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}"
+            )));
+        }
+        Ok(())
     }
 
     fn rule(&self) -> SplitRule {
@@ -190,24 +198,15 @@ pub fn mesh_decoded(
     options: &MeshOptions,
     path: &Path,
     original: Option<&Raster>,
+    max_memory: u64,
 ) -> Result<MeshReport, CliError> {
-    let format = MeshFormat::from_path(path).ok_or_else(|| {
-        CliError::Usage(format!(
-            "{}: unknown mesh format (use .glb, .obj or .ply)",
-            path.display()
-        ))
-    })?;
-    if path.is_dir() {
-        return Err(CliError::Output(
-            path.to_path_buf(),
-            "is a directory".into(),
-        ));
-    }
+    options.check(path, decoded.raster.len() as u64, max_memory)?;
+    let format = mesh_format(path)?;
+    let (target, base_plane) = options.target(decoded_plane(decoded))?;
     let map = decoded
         .significance
         .as_ref()
         .expect("decoded with the significance map");
-    let (target, base_plane) = options.target(decoded_plane(decoded))?;
     let surface = Surface::of(&decoded.raster);
     let timed_mesh = with_progress("meshing", || {
         build_mesh(map, &surface, target, options.rule(), base_plane)
@@ -268,6 +267,17 @@ pub fn mesh_decoded(
     })
 }
 
+/// The most bytes meshing `samples` samples for `target` may hold: heights as `f64` (8 a
+/// sample), leaves (12), triangles and their file encoding (up to 2 a sample, 12 + 18 bytes
+/// each), plus the error pyramid (16) for tolerances.
+fn mesh_memory(samples: u64, target: MeshTarget) -> u64 {
+    let tolerance = matches!(
+        target,
+        MeshTarget::Tolerance(_) | MeshTarget::TrianglesByTolerance(_)
+    );
+    samples.saturating_mul(8 + 12 + 2 * 30 + if tolerance { 16 } else { 0 })
+}
+
 /// The mesh format of `path`'s extension.
 fn mesh_format(path: &Path) -> Result<MeshFormat, CliError> {
     MeshFormat::from_path(path).ok_or_else(|| {
@@ -318,6 +328,9 @@ pub struct MeshArgs {
     /// Encode lossy (9/7) at this many bits per sample before meshing (default lossless).
     #[arg(long)]
     bpp: Option<f64>,
+    /// Refuse DEMs whose decode or mesh may need more than this many bytes.
+    #[arg(long, default_value_t = 2 << 30)]
+    max_memory: u64,
     #[command(flatten)]
     mesh: MeshOptions,
     /// Print one JSON object on stdout instead of text.
@@ -349,6 +362,8 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         ));
     }
     let raster = args.input_args.read(&args.input)?;
+    args.mesh
+        .check(&args.output, raster.len() as u64, args.max_memory)?;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
             Some((bpp * raster.len() as f64 / 8.0).floor() as u64)
@@ -366,13 +381,20 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     let encoded = encoded.map_err(CliError::Encode)?;
     let decode_options = DecodeOptions {
         significance_map: true,
+        limits: args.input_args.limits(args.max_memory),
         ..DecodeOptions::default()
     };
     let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
         timed(|| decode(&encoded.bytes, &decode_options))
     });
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
-    let mesh = mesh_decoded(&decoded, &args.mesh, &args.output, Some(&raster))?;
+    let mesh = mesh_decoded(
+        &decoded,
+        &args.mesh,
+        &args.output,
+        Some(&raster),
+        args.max_memory,
+    )?;
     let report = MeshCommandReport {
         schema_version: SCHEMA_VERSION,
         command: "mesh",
