@@ -44,6 +44,9 @@ pub fn read_arbitrary(data: &[u8], format: DemFormat) {
     let options = ReadOptions {
         terrain_rgb: format == DemFormat::TerrainRgb,
         max_samples: FUZZ_MAX_SAMPLES,
+        // Fuzz every decoder the readers reach, the lossy ones too.
+        accept_lossy: true,
+        ..ReadOptions::default()
     };
     let Ok(raster) = read_dem(file.path(), &options) else {
         return;

@@ -70,9 +70,6 @@ pub struct DecodeArgs {
     /// Report PSNR/RMSE/max error of the decoded DEM against this one.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
-    /// Refuse streams that need more decoder memory than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     /// Treat damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix with a warning.
     #[arg(long)]
@@ -140,7 +137,9 @@ struct EncodeReport<'a> {
 
 pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
-    let raster = args.input_args.read(&args.input)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
+    warn_about_output_extension(&args.output);
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let samples = (raster.width * raster.height) as f64;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
@@ -211,7 +210,9 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         verified,
         distortion,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -231,11 +232,26 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             seconds,
             report.encode_msamples_per_second
         );
+        if let Some(v) = &report.verified {
+            println!(
+                "  verified: decoded and checked before writing ({})",
+                verified_promise(v)
+            );
+        }
         if let Some(d) = &report.distortion {
             print_distortion(d);
         }
     }
     Ok(())
+}
+
+/// What `--verify` checked, in words.
+fn verified_promise(d: &Distortion) -> String {
+    if d.identical {
+        "bit-exact".into()
+    } else {
+        format!("max error {} within the bound", d.max_error)
+    }
 }
 
 /// Decodes `encoded` and checks the mode's promise against `raster`.
@@ -310,6 +326,7 @@ struct DamageReport {
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
     let data = std::fs::read(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
     let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
@@ -328,7 +345,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     let options = DecodeOptions {
         max_bytes,
         max_passes: None,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         strict: args.strict,
         significance_map: args.mesh.is_some(),
     };
@@ -342,7 +359,8 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         if mesh == &args.output {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
-        args.mesh_options.check(mesh, samples, args.max_memory)?;
+        args.mesh_options
+            .check(mesh, samples, args.input_args.max_memory)?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) =
@@ -372,7 +390,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             &args.mesh_options,
             path,
             reference.as_ref(),
-            args.max_memory,
+            args.input_args.max_memory,
         )?),
         None => None,
     };
@@ -402,7 +420,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         distortion,
         mesh,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -656,6 +676,31 @@ fn print_json<T: Serialize>(value: &T) {
         "{}",
         serde_json::to_string(value).expect("reports serialise")
     );
+}
+
+/// Whether the output is `-` (standard output, where no report is printed then);
+/// `--json` would share standard output with the data and is refused.
+fn writes_to_stdout(output: &Path, json: bool) -> Result<bool, CliError> {
+    let to_stdout = output.as_os_str() == "-";
+    if to_stdout && json {
+        return Err(CliError::Usage(
+            "-o - writes the data to standard output; --json cannot share it".into(),
+        ));
+    }
+    Ok(to_stdout)
+}
+
+/// Warns when an `.ezw` stream is about to be written under a DEM file's extension.
+fn warn_about_output_extension(output: &Path) {
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if let Some(ext) = ext.filter(|e| e != "ezw") {
+        eprintln!(
+            "wavemesh: warning: {}: writing a .ezw stream under a .{ext} name (decode makes DEM files)",
+            output.display()
+        );
+    }
 }
 
 /// Refuses to write over the input file.

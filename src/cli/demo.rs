@@ -191,7 +191,7 @@ fn decode_row(
 
 pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let path = sample_path(args);
-    let raster = args.input_args.read(&path)?;
+    let raster = args.input_args.read_to_encode(&path)?;
     let samples = (raster.width * raster.height) as f64;
     std::fs::create_dir_all(&args.out_dir)
         .map_err(|e| CliError::Output(args.out_dir.clone(), e.to_string()))?;

@@ -328,9 +328,6 @@ pub struct MeshArgs {
     /// Encode lossy (9/7) at this many bits per sample before meshing (default lossless).
     #[arg(long)]
     bpp: Option<f64>,
-    /// Refuse DEMs whose decode or mesh may need more than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     #[command(flatten)]
     mesh: MeshOptions,
     /// Print one JSON object on stdout instead of text.
@@ -361,9 +358,12 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
             "the output would overwrite the input".into(),
         ));
     }
-    let raster = args.input_args.read(&args.input)?;
-    args.mesh
-        .check(&args.output, raster.len() as u64, args.max_memory)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
+    args.mesh.check(
+        &args.output,
+        raster.len() as u64,
+        args.input_args.max_memory,
+    )?;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
             Some((bpp * raster.len() as f64 / 8.0).floor() as u64)
@@ -381,7 +381,7 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     let encoded = encoded.map_err(CliError::Encode)?;
     let decode_options = DecodeOptions {
         significance_map: true,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         ..DecodeOptions::default()
     };
     let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
@@ -393,7 +393,7 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         &args.mesh,
         &args.output,
         Some(&raster),
-        args.max_memory,
+        args.input_args.max_memory,
     )?;
     let report = MeshCommandReport {
         schema_version: SCHEMA_VERSION,
@@ -483,7 +483,7 @@ struct TableReport<'a> {
 }
 
 pub fn table(args: &TableArgs) -> Result<(), CliError> {
-    let raster = args.input_args.read(&args.input)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let rows = match (&args.thresholds, &args.bpp) {
         (Some(ts), _) => {
             if let Some(t) = ts.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {

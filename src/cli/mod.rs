@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use wavemesh::dem::{self, ReadOptions};
+use wavemesh::dem::{self, DemError, ReadOptions, WorkMemory};
 use wavemesh_codec::{CodecError, Limits, Raster, Wavelet};
 
 /// Store, stream and mesh elevation models: wavelet + EZW terrain codec.
@@ -72,23 +72,62 @@ pub struct InputArgs {
     /// Refuse inputs with more samples than this.
     #[arg(long, default_value_t = 1 << 31)]
     max_samples: u64,
+    /// Refuse work that may need more memory than this many bytes (the raster and the
+    /// encoder's or decoder's working memory), before allocating anything.
+    #[arg(long, default_value_t = 2 << 30)]
+    max_memory: u64,
+    /// Read TIFFs with lossy-compressed samples (JPEG...): other readers may decode them
+    /// ±1 differently, so "lossless" then holds only against this reader.
+    #[arg(long)]
+    accept_lossy_input: bool,
 }
 
+/// Bytes a sample the encoder allocates besides the raster (measured peaks: 15 for
+/// integers, 44 for floats coded exactly, with some headroom).
+const ENCODE_WORK: WorkMemory = WorkMemory {
+    integer: 20,
+    float: 48,
+};
+
 impl InputArgs {
+    /// Reads a DEM that will only be read (compared, measured).
     fn read(&self, path: &Path) -> Result<Raster, CliError> {
+        self.read_for(path, WorkMemory::default())
+    }
+
+    /// Reads a DEM that will be encoded: the encoder's memory counts against the limit.
+    fn read_to_encode(&self, path: &Path) -> Result<Raster, CliError> {
+        self.read_for(path, ENCODE_WORK)
+    }
+
+    fn read_for(&self, path: &Path, work: WorkMemory) -> Result<Raster, CliError> {
         let options = ReadOptions {
             terrain_rgb: self.terrain_rgb,
             max_samples: self.max_samples,
+            max_memory: self.max_memory,
+            work,
+            accept_lossy: self.accept_lossy_input,
         };
-        dem::read_dem(path, &options).map_err(CliError::Dem)
+        dem::read_dem(path, &options).map_err(|e| read_failure(path, e))
     }
 
-    fn limits(&self, max_memory: u64) -> Limits {
+    fn limits(&self) -> Limits {
         Limits {
             max_samples: self.max_samples,
-            max_memory,
+            max_memory: self.max_memory,
         }
     }
+}
+
+/// A reader's error, with the option that lifts a limit named.
+fn read_failure(path: &Path, error: DemError) -> CliError {
+    let hint = match error {
+        DemError::TooLarge { .. } => "raise --max-samples if the file is trusted",
+        DemError::OverMemory { .. } => "raise --max-memory if the machine has it",
+        DemError::LossyInput(_) => "--accept-lossy-input reads them anyway",
+        other => return CliError::Dem(other),
+    };
+    CliError::Input(path.to_path_buf(), format!("{error}; {hint}"))
 }
 
 /// A command failure, by cause.
