@@ -2,6 +2,8 @@
 //! `../shared/dem` (checked against its `manifest.json`, skipped when absent) and the
 //! samples in `samples/`.
 
+mod support;
+
 use std::collections::HashSet;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -9,17 +11,6 @@ use std::path::{Path, PathBuf};
 use serde_json::Value;
 use wavemesh::dem::{detect_format, read_dem, write_dem, DemFormat, ReadOptions};
 use wavemesh_codec::{Raster, SampleType, Samples};
-
-/// The shared DEM folder, or `None` (with a notice) when it is not there.
-fn shared_dem() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dem");
-    if dir.join("manifest.json").is_file() {
-        Some(dir)
-    } else {
-        eprintln!("skipping: ../shared/dem not found");
-        None
-    }
-}
 
 /// The manifest's datasets.
 fn datasets(dir: &Path) -> Vec<Value> {
@@ -57,7 +48,9 @@ fn sample_bits(samples: &Samples, i: usize) -> u64 {
 
 #[test]
 fn shared_tifs_match_the_manifest() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_tifs_match_the_manifest") else {
+        return;
+    };
     for ds in datasets(&dir) {
         let name = ds["name"].as_str().unwrap();
         let path = dir.join(ds["files"]["tif"].as_str().unwrap());
@@ -135,7 +128,9 @@ fn shared_tifs_match_the_manifest() {
 
 #[test]
 fn shared_pngs_equal_their_tifs_plus_offset() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_pngs_equal_their_tifs_plus_offset") else {
+        return;
+    };
     let mut checked = 0;
     for ds in datasets(&dir) {
         let name = ds["name"].as_str().unwrap();
@@ -176,7 +171,9 @@ fn shared_pngs_equal_their_tifs_plus_offset() {
 
 #[test]
 fn srtm_hgt_equals_its_tif() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::srtm_hgt_equals_its_tif") else {
+        return;
+    };
     let hgt_path = dir.join("srtm3_n57e011/N57E011.hgt");
     assert_eq!(
         detect_format(&hgt_path, &[0; 16], &ReadOptions::default()).unwrap(),
@@ -197,7 +194,9 @@ fn srtm_hgt_equals_its_tif() {
 
 #[test]
 fn fuji_terrain_rgb_equals_its_tif() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::fuji_terrain_rgb_equals_its_tif") else {
+        return;
+    };
     let png = dir.join("fuji_terrainrgb/fuji.png");
     let options = ReadOptions {
         terrain_rgb: true,
@@ -222,7 +221,9 @@ fn fuji_terrain_rgb_equals_its_tif() {
 
 #[test]
 fn shared_dems_survive_write_and_read_back() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_dems_survive_write_and_read_back") else {
+        return;
+    };
     let out = tempfile::tempdir().unwrap();
     for (tif, formats) in [
         ("alps_srtm_voids/alps_srtm_voids.tif", &["tif", "asc"][..]),
@@ -293,7 +294,7 @@ fn samples_match_what_the_script_claims() {
         }
     }
     // Same heights and placement as the shared copy of the DEM, when it is there.
-    if let Some(dir) = shared_dem() {
+    if let Some(dir) = support::shared_dem("dem_io::samples_match_what_the_script_claims") {
         let shared = read(&dir.join("jacksboro_fault/jacksboro_fault.tif"));
         assert_eq!(clean.samples, shared.samples);
         assert_eq!(

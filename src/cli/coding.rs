@@ -77,12 +77,12 @@ pub struct DecodeArgs {
     /// Also write the mesh of the decoder's zerotree (.glb, .obj or .ply).
     #[arg(long, value_name = "MESH")]
     mesh: Option<PathBuf>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Mesh (with --mesh)")]
     mesh_options: MeshOptions,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Limits, and reading the --reference DEM")]
     input_args: InputArgs,
 }
 
@@ -260,9 +260,7 @@ fn verify_encoding(
     encoded: &wavemesh_codec::Encoded,
 ) -> Result<Distortion, CliError> {
     let fail = |what: String| {
-        CliError::Encode(wavemesh_codec::CodecError::InvalidParameters(format!(
-            "verification failed: {what}; nothing was written"
-        )))
+        CliError::CheckFailed(format!("verification failed: {what}; nothing was written"))
     };
     let decoded = decode_stream(&encoded.bytes, &DecodeOptions::default())
         .map_err(|e| fail(e.to_string()))?;
@@ -630,6 +628,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let original = args.input_args.read(&args.original)?;
     let other = args.input_args.read(&args.other)?;
     let distortion = compare_rasters(&original, &other, &args.other)?;
+    let mismatches = distortion.nodata_mismatches;
     if args.json {
         print_json(&CompareReport {
             schema_version: SCHEMA_VERSION,
@@ -639,7 +638,17 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             distortion,
         });
     } else {
+        if mismatches > 0 {
+            println!("VOIDS DIFFER: {mismatches} samples are nodata in one raster and valid in the other; the errors below cover only the samples valid in both");
+        }
         print_distortion(&distortion);
+    }
+    if mismatches > 0 {
+        return Err(CliError::CheckFailed(format!(
+            "{} and {} differ in {mismatches} voids (nodata in one, valid in the other)",
+            args.original.display(),
+            args.other.display()
+        )));
     }
     Ok(())
 }

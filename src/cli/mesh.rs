@@ -97,8 +97,8 @@ impl MeshOptions {
         let (target, _) = self.target(0)?;
         let needed = mesh_memory(samples, target);
         if needed > max_memory {
-            return Err(CliError::Usage(format!(
-                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}"
+            return Err(CliError::OverLimit(format!(
+                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}; raise it if the machine has it"
             )));
         }
         Ok(())

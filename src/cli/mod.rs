@@ -108,7 +108,9 @@ impl InputArgs {
             work,
             accept_lossy: self.accept_lossy_input,
         };
-        dem::read_dem(path, &options).map_err(|e| read_failure(path, e))
+        let raster = dem::read_dem(path, &options).map_err(|e| read_failure(path, e))?;
+        warn_if_hgt_lost_its_place(path, &raster);
+        Ok(raster)
     }
 
     fn limits(&self) -> Limits {
@@ -116,6 +118,20 @@ impl InputArgs {
             max_samples: self.max_samples,
             max_memory: self.max_memory,
         }
+    }
+}
+
+/// An SRTM `.hgt` tile is placed by its name (`N57E011.hgt`): warn when the name did not
+/// give it a place, since everything made from it has no georeferencing.
+fn warn_if_hgt_lost_its_place(path: &Path, raster: &Raster) {
+    let is_hgt = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("hgt"));
+    if is_hgt && raster.georef.is_none() {
+        eprintln!(
+            "wavemesh: warning: {}: not named like an SRTM tile (e.g. N57E011.hgt), so it has no georeferencing",
+            path.display()
+        );
     }
 }
 
@@ -143,7 +159,7 @@ pub enum CliError {
     #[error("{0}")]
     DemOutput(dem::DemError),
     /// A `.ezw` file could not be decoded.
-    #[error("{path}: {error}", path = .0.display(), error = .1)]
+    #[error("{path}: {error}{hint}", path = .0.display(), error = .1, hint = limit_hint(.1))]
     Stream(PathBuf, CodecError),
     /// Encoding failed.
     #[error("{0}")]
@@ -154,23 +170,53 @@ pub enum CliError {
     /// `verify` found damage (the report is already printed).
     #[error("{}: damaged (see the report above)", .0.display())]
     Damaged(PathBuf),
+    /// The work would exceed `--max-memory` or `--max-samples` (the message names which).
+    #[error("{0}")]
+    OverLimit(String),
+    /// A check failed: `encode --verify`, or `compare` found the rasters' voids differ.
+    #[error("{0}")]
+    CheckFailed(String),
     /// Arguments that clap cannot check alone.
     #[error("{0}")]
     Usage(String),
 }
 
+/// The options that lift a decoder limit, for messages about one.
+fn limit_hint(error: &CodecError) -> &'static str {
+    match error {
+        CodecError::LimitExceeded { .. } => {
+            "; raise --max-samples or --max-memory if the file is trusted"
+        }
+        _ => "",
+    }
+}
+
+/// Process exit codes, one per kind of cause (the README's table).
+pub mod exit {
+    /// A check failed: `encode --verify`, `compare` with mismatched voids, an encoder fault.
+    pub const CHECK_FAILED: u8 = 1;
+    /// Bad arguments.
+    pub const USAGE: u8 = 2;
+    /// Input unreadable, invalid, damaged (`verify`, `--strict`), or over a limit.
+    pub const BAD_INPUT: u8 = 3;
+    /// An output could not be written.
+    pub const OUTPUT: u8 = 4;
+}
+
 impl CliError {
-    /// Process exit code: 2 usage, 3 unreadable or invalid input, 4 output failure,
-    /// 1 anything else.
+    /// Process exit code (see [`exit`]).
     pub fn exit_code(&self) -> u8 {
         match self {
-            CliError::Usage(_) => 2,
+            CliError::Usage(_) => exit::USAGE,
             CliError::Input(..)
             | CliError::Stream(..)
             | CliError::Dem(_)
-            | CliError::Damaged(_) => 3,
-            CliError::Output(..) | CliError::DemOutput(_) => 4,
-            CliError::Encode(_) => 1,
+            | CliError::Damaged(_)
+            | CliError::OverLimit(_) => exit::BAD_INPUT,
+            CliError::Output(..) | CliError::DemOutput(_) => exit::OUTPUT,
+            CliError::Encode(CodecError::InvalidParameters(_)) => exit::USAGE,
+            CliError::Encode(CodecError::UnsupportedValues(_)) => exit::BAD_INPUT,
+            CliError::Encode(_) | CliError::CheckFailed(_) => exit::CHECK_FAILED,
         }
     }
 }
