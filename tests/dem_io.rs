@@ -6,7 +6,7 @@ mod support;
 
 use std::collections::HashSet;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::Value;
 use wavemesh::dem::{detect_format, read_dem, write_dem, DemFormat, ReadOptions};
