@@ -280,6 +280,16 @@ fn mesh_memory(samples: u64, target: MeshTarget) -> u64 {
 
 /// The mesh format of `path`'s extension.
 fn mesh_format(path: &Path) -> Result<MeshFormat, CliError> {
+    if path.as_os_str() == "-" {
+        return Err(CliError::Usage(
+            "meshes are not written to standard output (-); name a file, a device or a FIFO".into(),
+        ));
+    }
+    // A device or FIFO has no extension to go by: binary glTF, the one-file format.
+    let is_stream = wavemesh::atomic::destination(path).is_ok_and(|d| d.is_stream());
+    if path.extension().is_none() && is_stream {
+        return Ok(MeshFormat::Glb);
+    }
     MeshFormat::from_path(path).ok_or_else(|| {
         CliError::Usage(format!(
             "{}: unknown mesh format (use .glb, .obj or .ply)",

@@ -89,10 +89,16 @@ const ENCODE_WORK: WorkMemory = WorkMemory {
     float: 48,
 };
 
+/// Bytes a sample of the other raster held beside one being compared (at most an f32).
+const COMPARE_WORK: WorkMemory = WorkMemory {
+    integer: 4,
+    float: 4,
+};
+
 impl InputArgs {
-    /// Reads a DEM that will only be read (compared, measured).
+    /// Reads a DEM that will be compared with another of its size (held beside it).
     fn read(&self, path: &Path) -> Result<Raster, CliError> {
-        self.read_for(path, WorkMemory::default())
+        self.read_for(path, COMPARE_WORK)
     }
 
     /// Reads a DEM that will be encoded: the encoder's memory counts against the limit.
