@@ -7,6 +7,7 @@ use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
 };
 use crate::mask::{decode_mask, encode_mask, Mask};
+use crate::progress::{self, Stage};
 use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{decode_residuals, encode_residuals};
@@ -314,6 +315,9 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
     };
 
     let top = ezw::top_plane(&layout, &prepared.coefficients);
+    let steps = top.map_or(1, |t| u64::from(t) + 2);
+    let samples = (width * height) as u64;
+    progress::report(Stage::Transform, samples, samples * steps);
     let mut header = Header {
         width: width as u32,
         height: height as u32,
@@ -989,6 +993,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
             )
         }
     };
+    progress::report(Stage::Transform, 1, 1);
     // The residual section: exact float residuals once the whole stream is decoded, or
     // max-error corrections once the whole (cut) payload is.
     let residual_bytes = residual_framed

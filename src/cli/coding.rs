@@ -11,7 +11,7 @@ use wavemesh_codec::{
 };
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{timed, with_codec_progress, CliError, InputArgs, WaveletArg, Workload};
 
 /// Version of every JSON object the CLI prints.
 pub const SCHEMA_VERSION: u32 = 1;
@@ -165,13 +165,16 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         ));
     }
     options.levels = args.levels;
-    let (encoded, seconds, peak) =
-        with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
+    let (encoded, seconds, peak) = with_codec_progress("encoding", Workload::of(&raster), || {
+        timed(|| encode_raster(&raster, &options))
+    });
     let encoded = encoded.map_err(CliError::Encode)?;
     let verified = if args.verify {
-        Some(with_progress("verifying", || {
-            verify_encoding(&raster, &encoded)
-        })?)
+        Some(with_codec_progress(
+            "verifying",
+            Workload::of(&raster),
+            || verify_encoding(&raster, &encoded),
+        )?)
     } else {
         None
     };
@@ -361,8 +364,11 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             .check(mesh, samples, args.input_args.max_memory)?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
-    let (decoded, seconds, peak) =
-        with_progress("decoding", || timed(|| decode_stream(&data, &options)));
+    let (decoded, seconds, peak) = with_codec_progress(
+        "decoding",
+        Workload::new(samples, header.sample_type),
+        || timed(|| decode_stream(&data, &options)),
+    );
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     if let Some(d) = decoded.damage {
         eprintln!(

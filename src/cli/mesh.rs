@@ -14,7 +14,7 @@ use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{timed, with_codec_progress, with_progress, CliError, InputArgs, WaveletArg, Workload};
 
 /// Which coefficients split a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -387,16 +387,19 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     };
     let options = EncodeOptions::new(Quality::Lossless, budget);
     let (encoded, encode_seconds, _) =
-        with_progress("encoding", || timed(|| encode(&raster, &options)));
+        with_codec_progress("encoding", Workload::of(&raster), || {
+            timed(|| encode(&raster, &options))
+        });
     let encoded = encoded.map_err(CliError::Encode)?;
     let decode_options = DecodeOptions {
         significance_map: true,
         limits: args.input_args.limits(),
         ..DecodeOptions::default()
     };
-    let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
-        timed(|| decode(&encoded.bytes, &decode_options))
-    });
+    let (decoded, decode_seconds, decode_peak) =
+        with_codec_progress("decoding", Workload::of(&raster), || {
+            timed(|| decode(&encoded.bytes, &decode_options))
+        });
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let mesh = mesh_decoded(
         &decoded,
@@ -523,8 +526,10 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         options.wavelet = args.wavelet.into();
         options.budget_bytes = Some((top * raster.len() as f64 / 8.0).ceil() as u64);
     }
-    let encoded =
-        with_progress("encoding", || encode(&raster, &options)).map_err(CliError::Encode)?;
+    let encoded = with_codec_progress("encoding", Workload::of(&raster), || {
+        encode(&raster, &options)
+    })
+    .map_err(CliError::Encode)?;
     let rule = match args.rule {
         RuleArg::Zerotree => SplitRule::Zerotree,
         RuleArg::Own => SplitRule::OwnCoefficients,

@@ -255,6 +255,64 @@ fn with_progress<T>(message: &str, work: impl FnOnce() -> T) -> T {
     out
 }
 
+/// The raster an encode or decode works through, for its progress bar.
+#[derive(Debug, Clone, Copy)]
+struct Workload {
+    samples: u64,
+    bytes: u64,
+}
+
+impl Workload {
+    fn of(raster: &Raster) -> Workload {
+        Workload::new(raster.len() as u64, raster.sample_type())
+    }
+
+    fn new(samples: u64, sample_type: wavemesh_codec::SampleType) -> Workload {
+        Workload {
+            samples,
+            bytes: samples * sample_type.bytes() as u64,
+        }
+    }
+}
+
+/// A progress bar on stderr while an encode or decode runs (on a terminal only): the
+/// codec's stage, percent, samples swept, MB/s of raster and the time left.
+fn with_codec_progress<T>(message: &str, load: Workload, work: impl FnOnce() -> T) -> T {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return work();
+    }
+    let style = indicatif::ProgressStyle::with_template(
+        "{spinner} {prefix} [{wide_bar}] {percent:>3}% {msg} ETA {eta}",
+    )
+    .expect("a valid template")
+    .progress_chars("=> ");
+    let bar = indicatif::ProgressBar::new(1)
+        .with_style(style)
+        .with_prefix(message.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(100));
+    let start = Instant::now();
+    let shown = bar.clone();
+    let out = wavemesh_codec::progress::observe(
+        move |p| {
+            let fraction = p.done as f64 / p.total.max(1) as f64;
+            let seconds = start.elapsed().as_secs_f64().max(1e-3);
+            shown.set_length(p.total.max(1));
+            shown.set_position(p.done);
+            shown.set_message(format!(
+                "{}: {:.1} of {:.1} Msamples, {:.1} MB/s",
+                p.stage.name(),
+                fraction * load.samples as f64 / 1e6,
+                load.samples as f64 / 1e6,
+                fraction * load.bytes as f64 / 1e6 / seconds
+            ));
+        },
+        work,
+    );
+    bar.finish_and_clear();
+    out
+}
+
 /// Wall-clock seconds of `work`, and the heap peak above the heap in use before it.
 fn timed<T>(work: impl FnOnce() -> T) -> (T, f64, usize) {
     let start = Instant::now();
