@@ -384,3 +384,21 @@ fn small_things_a_user_hit() {
     let cmp = wavemesh(&["compare", s(&input), s(&sample("jacksboro_voids.tif"))]);
     assert!(String::from_utf8_lossy(&cmp.stdout).starts_with("VOIDS DIFFER"));
 }
+
+#[test]
+fn demo_runs_anywhere_from_its_bundled_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let result = Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+        .args(["demo", "--json"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(result.status.success(), "{}", stderr(&result));
+    let out = dir.path().join("wavemesh-demo");
+    assert_eq!(
+        std::fs::read(out.join("jacksboro_fault.tif")).unwrap(),
+        std::fs::read(sample("jacksboro_fault.tif")).unwrap()
+    );
+    assert!(out.join("lossless.ezw").exists() && out.join("jacksboro_fault.glb").exists());
+    assert!(!dir.path().join("target").exists());
+}
