@@ -402,3 +402,22 @@ fn demo_runs_anywhere_from_its_bundled_sample() {
     assert!(out.join("lossless.ezw").exists() && out.join("jacksboro_fault.glb").exists());
     assert!(!dir.path().join("target").exists());
 }
+
+#[test]
+fn the_readme_lists_every_exit_code() {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let start = readme
+        .find("| code | cause |")
+        .expect("the exit-code table");
+    let rows: Vec<&str> = readme[start..]
+        .lines()
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .collect();
+    let codes: Vec<u32> = rows
+        .iter()
+        .map(|r| r.split('|').nth(1).unwrap().trim().parse().unwrap())
+        .collect();
+    assert_eq!(codes, [0, 1, 2, 3, 4], "{rows:?}");
+}
