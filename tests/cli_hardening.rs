@@ -421,3 +421,22 @@ fn the_readme_lists_every_exit_code() {
         .collect();
     assert_eq!(codes, [0, 1, 2, 3, 4], "{rows:?}");
 }
+
+#[test]
+fn a_rate_below_the_smallest_prefix_decodes_the_smallest_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let ezw = dir.path().join("voids.ezw");
+    let input = sample("jacksboro_voids.tif");
+    assert!(wavemesh(&["encode", s(&input), "-o", s(&ezw)])
+        .status
+        .success());
+    let out = dir.path().join("tiny.tif");
+    for rate in [["--bytes", "10"], ["--bpp", "0.0001"]] {
+        let result = wavemesh(&["decode", s(&ezw), "-o", s(&out), rate[0], rate[1], "--json"]);
+        assert!(result.status.success(), "{}", stderr(&result));
+        assert!(stderr(&result).contains("smallest decodable prefix"));
+        let report: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+        let used = report["bytes_read"].as_u64().unwrap();
+        assert!(used > 10 && used < 2000, "{used}");
+    }
+}

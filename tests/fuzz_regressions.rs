@@ -61,7 +61,10 @@ fn replay(target: &str, run: impl Fn(&[u8])) -> (usize, usize) {
                 .to_string_lossy()
                 .into_owned();
             if OPEN.iter().any(|(p, _)| *p == relative) {
-                support::skipped(&format!("fuzz_regressions {relative}"), "open bug (see OPEN)");
+                support::skipped(
+                    &format!("fuzz_regressions {relative}"),
+                    "open bug (see OPEN)",
+                );
                 continue;
             }
             let data = fs::read(&path).unwrap();

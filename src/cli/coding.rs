@@ -330,7 +330,8 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     let to_stdout = writes_to_stdout(&args.output, args.json)?;
     let data = std::fs::read(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let (header, header_len) =
+        Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
         (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {
@@ -343,6 +344,8 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
         (None, bytes) => bytes,
     };
+    let smallest = header_len as u64 + u64::from(header.mask_len);
+    let max_bytes = max_bytes.map(|asked| at_least_decodable(asked, smallest, samples));
     let options = DecodeOptions {
         max_bytes,
         max_passes: None,
@@ -691,6 +694,19 @@ fn print_json<T: Serialize>(value: &T) {
         "{}",
         serde_json::to_string(value).expect("reports serialise")
     );
+}
+
+/// A prefix of `asked` bytes, raised to `smallest` (the header and nodata mask, the
+/// shortest prefix that decodes) with a note on stderr saying the rate used.
+fn at_least_decodable(asked: u64, smallest: u64, samples: u64) -> u64 {
+    if asked >= smallest {
+        return asked;
+    }
+    eprintln!(
+        "wavemesh: note: {asked} bytes is less than the smallest decodable prefix; decoding {smallest} bytes ({:.4} bpp): the header and nodata mask",
+        smallest as f64 * 8.0 / samples as f64
+    );
+    smallest
 }
 
 /// Whether the output is `-` (standard output, where no report is printed then);
