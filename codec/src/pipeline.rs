@@ -694,7 +694,7 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_samples: 1 << 30,
+            max_samples: 1 << 31,
             max_memory: 2 << 30,
         }
     }

@@ -70,11 +70,11 @@ pub struct InputArgs {
     #[arg(long)]
     terrain_rgb: bool,
     /// Refuse inputs with more samples than this.
-    #[arg(long, default_value_t = 1 << 31)]
+    #[arg(long, default_value_t = Limits::default().max_samples)]
     max_samples: u64,
     /// Refuse work that may need more memory than this many bytes (the raster and the
     /// encoder's or decoder's working memory), before allocating anything.
-    #[arg(long, default_value_t = 2 << 30)]
+    #[arg(long, default_value_t = Limits::default().max_memory)]
     max_memory: u64,
     /// Read TIFFs with lossy-compressed samples (JPEG...): other readers may decode them
     /// ±1 differently, so "lossless" then holds only against this reader.
