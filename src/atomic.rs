@@ -3,7 +3,7 @@
 //! followed (its target is replaced atomically), character devices and FIFOs
 //! (`/dev/stdout`, a named pipe) are written through, and `-` is standard output.
 
-use std::fs::{self, OpenOptions, Permissions};
+use std::fs::{self, File, OpenOptions, Permissions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -103,7 +103,23 @@ pub fn write_atomic(
         Destination::Stream(device) => {
             write_through(OpenOptions::new().write(true).open(device)?, write)
         }
+        Destination::File(file) => replace_file(&file, |w| write(w)),
+    }
+}
+
+/// [`write_atomic`] for writers that seek as they write (a TIFF encoder): only a
+/// regular file can take them, so `-`, devices and FIFOs are refused with
+/// [`io::ErrorKind::InvalidInput`].
+pub fn write_atomic_seekable(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
+) -> io::Result<()> {
+    match destination(path)? {
         Destination::File(file) => replace_file(&file, write),
+        _ => Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "this output seeks while it is written: name a regular file",
+        )),
     }
 }
 
@@ -120,7 +136,7 @@ fn write_through(
 /// The temporary-file-and-rename write of a regular file.
 fn replace_file(
     path: &Path,
-    write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
 ) -> io::Result<()> {
     let dir = parent_dir(path);
     let mut builder = tempfile::Builder::new();

@@ -4,6 +4,7 @@ mod coding;
 mod demo;
 mod mesh;
 mod report;
+mod synth;
 mod verify;
 
 use std::path::{Path, PathBuf};
@@ -41,6 +42,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Measure every DEM of a manifest folder beside the peer tools' results (README tables).
     Report(report::ReportArgs),
+    /// Write a fractal test DEM of any size as a GeoTIFF, strip by strip.
+    Synth(synth::SynthArgs),
 }
 
 /// Wavelet choice on the command line.
@@ -239,6 +242,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Table(args) => mesh::table(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
+        Command::Synth(args) => synth::run(&args),
     }
 }
 
