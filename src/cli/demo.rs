@@ -133,10 +133,8 @@ fn demo_mesh(raster: &Raster, lossless: &Encoded, path: &Path) -> Result<DemoMes
             error.max_error
         )));
     }
-    let placement = match &raster.georef {
-        Some(g) => Placement::georeferenced(g.geotransform, 1.0),
-        None => Placement::default(),
-    };
+    let placement = Placement::metric(raster.georef.as_ref(), raster.width, raster.height, 1.0)
+        .map_err(|e| CliError::Input(PathBuf::from("sample"), e.to_string()))?;
     let format = MeshFormat::Glb;
     let start = Instant::now();
     write_mesh(path, mesh, &surface.heights, &placement, format)
