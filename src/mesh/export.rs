@@ -95,7 +95,7 @@ pub enum XyUnits {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Placement {
     /// Geotransform used unless `xy` is [`XyUnits::Pixel`] (`None` → pixel units are used,
-    /// and [`Placement::xy_fallback`] reports it).
+    /// and [`Placement::frame_name`] says `pixel`).
     pub geotransform: Option<[f64; 6]>,
     /// Pixel, georeferenced or local metric x/y.
     pub xy: XyUnits,
@@ -177,12 +177,6 @@ impl Placement {
             z_scale,
             crs,
         })
-    }
-
-    /// Whether georeferenced x/y were asked for without a geotransform, so pixel units are
-    /// used instead.
-    pub fn xy_fallback(&self) -> bool {
-        self.xy != XyUnits::Pixel && self.geotransform.is_none()
     }
 
     /// The geotransform in use: `None` for pixel units.
@@ -917,7 +911,7 @@ mod tests {
         let p = Placement::pixel(2.0);
         assert_eq!(p.position(0, 0, 0.0), [0.0, 0.0, 0.0]);
         assert_eq!(p.position(3, 7, 10.5), [3.0, 7.0, 21.0]);
-        assert!(!p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
     }
 
     #[test]
@@ -943,7 +937,7 @@ mod tests {
         };
         assert_eq!(p.position(4, 5, 1.0), [4.0, 5.0, 1.0]);
         assert!(!p.flips_winding());
-        assert!(!p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
     }
 
     /// A GeoKey directory with `GTModelTypeGeoKey` `model` and the CRS code `code`
@@ -1008,7 +1002,6 @@ mod tests {
         assert_eq!(p.frame_name(), "georeferenced");
         assert_eq!(p.frame_record()["crs"], "EPSG:32632");
         let none = Placement::metric(None, 10, 10, 1.0).unwrap();
-        assert!(none.xy_fallback());
         assert_eq!(none.frame_name(), "pixel");
         // Degrees on request, and a DEM beyond the poles refused.
         let geographic = georef([10.0, ARC3, 0.0, 58.0, 0.0, -ARC3], 2, 4326, 9102);
@@ -1022,7 +1015,7 @@ mod tests {
     #[test]
     fn georeferenced_without_geotransform_falls_back_to_pixels() {
         let p = Placement::default();
-        assert!(p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
         assert_eq!(p.position(4, 5, 1.0), [4.0, 5.0, 1.0]);
         assert!(!p.flips_winding());
     }
