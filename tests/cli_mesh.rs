@@ -608,7 +608,7 @@ fn csv_table(args: &[&str]) -> Vec<std::collections::HashMap<String, f64>> {
         .iter()
         .map(str::to_string)
         .collect();
-    assert_eq!(header.len(), 17, "{header:?}");
+    assert_eq!(header.len(), 18, "{header:?}");
     for column in [
         "plane",
         "threshold",

@@ -362,6 +362,23 @@ fn uncovered_samples_are_reported_beside_the_errors() {
             "{line}"
         );
     }
+    // The paper's table says it too, under Table 1 and in its CSV.
+    let voids = sample("jacksboro_voids.tif");
+    let table = stdout(&["table", s(&voids), "--runs", "1"]);
+    assert!(
+        table.contains("valid samples next to nodata are left uncovered"),
+        "{table}"
+    );
+    let csv = stdout(&["table", s(&voids), "--runs", "1", "--format", "csv"]);
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|&h| h == "mesh_uncovered_samples")
+        .expect("an uncovered column");
+    for line in csv.lines().skip(1) {
+        let uncovered: u64 = line.split(',').nth(column).unwrap().parse().unwrap();
+        assert!(uncovered > 0, "{line}");
+    }
     // A mesh that covers everything says nothing about it.
     let full = stdout(&[
         "mesh",
@@ -372,6 +389,8 @@ fn uncovered_samples_are_reported_beside_the_errors() {
         "256",
     ]);
     assert!(!full.contains("uncovered"), "{full}");
+    let table = stdout(&["table", s(&sample("jacksboro_fault.tif")), "--runs", "1"]);
+    assert!(!table.contains("uncovered"), "{table}");
 }
 
 /// What a screenshot shows: the share of pixels that are not the page's background, the

@@ -17,6 +17,7 @@ use wavemesh_codec::{
 };
 
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
+use super::mesh::uncovered_note;
 use super::{timed, CliError, InputArgs};
 
 /// The sample the demo uses when none is given.
@@ -337,10 +338,11 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         m.remaining_percent
     );
     println!(
-        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
+        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
         m.error.rmse,
         m.error.psnr_db,
         m.error.max_error,
+        uncovered_note(&m.error),
         m.decode_seconds,
         m.pyramid_seconds,
         m.mesh_seconds,

@@ -347,21 +347,28 @@ pub fn print_mesh_summary(report: &MeshReport) {
     }
 }
 
-/// One line of a mesh's errors, with the valid samples it leaves uncovered (cut off by
-/// nodata), which the errors do not include.
+/// One line of a mesh's errors, with [`uncovered_note`].
 fn print_mesh_error(label: &str, e: &MeshError) {
-    let uncovered = if e.uncovered_samples > 0 {
+    println!(
+        "  {label} RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{}",
+        e.rmse,
+        e.psnr_db,
+        e.max_error,
+        uncovered_note(e)
+    );
+}
+
+/// What follows a mesh's errors when it leaves valid samples uncovered (cut off by
+/// nodata), which the errors do not include; empty when it covers them all.
+pub fn uncovered_note(e: &MeshError) -> String {
+    if e.uncovered_samples > 0 {
         format!(
             "  over {} covered samples; {} valid samples uncovered",
             e.compared_samples, e.uncovered_samples
         )
     } else {
         String::new()
-    };
-    println!(
-        "  {label} RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{uncovered}",
-        e.rmse, e.psnr_db, e.max_error
-    );
+    }
 }
 
 #[derive(Debug, clap::Args)]
