@@ -254,9 +254,9 @@ impl Placement {
         record
     }
 
-    /// One line describing the frame, for the OBJ and PLY headers.
+    /// One line of ASCII describing the frame, for the OBJ and PLY headers.
     pub fn frame_text(&self) -> String {
-        let z = format!("z = stored value × {}", self.z_scale);
+        let z = format!("z = stored value * {}", self.z_scale);
         let crs = self.crs.label();
         match (self.xy, self.active_geotransform()) {
             (_, None) => format!("frame pixel: x = column, y = row, {z}"),
@@ -985,6 +985,7 @@ mod tests {
         assert_eq!(record["crs"], "EPSG:4326");
         assert_eq!(record["origin"]["ellipsoid"], "WGS 84");
         assert!(p.frame_text().contains("local_enu"));
+        assert!(p.frame_text().is_ascii(), "PLY headers are ASCII");
         // The same in radians.
         let radians = georef(gt.map(f64::to_radians), 2, 4326, 9101);
         let q = Placement::metric(Some(&radians), 401, 301, 1.0).unwrap();
