@@ -90,12 +90,13 @@ impl HorizontalCrs {
                 epsg: code(PROJECTED_TYPE_KEY),
             });
         }
+        // EPSG angular unit codes.
         let degrees_per_unit = match geo_key(keys, ANGULAR_UNITS_KEY) {
-            None | Some(9102) => 1.0,
-            Some(9101) => 180.0 / std::f64::consts::PI,
-            Some(9103) => 1.0 / 60.0,
-            Some(9104) => 1.0 / 3600.0,
-            Some(9105) | Some(9106) => 0.9,
+            None | Some(9102) => 1.0,                   // degree (the default)
+            Some(9101) => 180.0 / std::f64::consts::PI, // radian
+            Some(9103) => 1.0 / 60.0,                   // arc-minute
+            Some(9104) => 1.0 / 3600.0,                 // arc-second
+            Some(9105) | Some(9106) => 0.9,             // grad, gon
             Some(unit) => return Err(FrameError::UnknownAngularUnit(unit)),
         };
         Ok(HorizontalCrs::Geographic {
