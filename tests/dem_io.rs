@@ -82,7 +82,19 @@ fn shared_tifs_match_the_manifest() {
             sample_type(ds["dtype"].as_str().unwrap()),
             "{name} type"
         );
-        assert_eq!(r.nodata, ds["nodata_value"].as_f64(), "{name} nodata");
+        // The manifest writes a NaN nodata value as the string "NaN".
+        let nodata = match ds["nodata_value"].as_str() {
+            Some("NaN") => Some(f64::NAN),
+            _ => ds["nodata_value"].as_f64(),
+        };
+        assert!(
+            r.nodata == nodata
+                || r.nodata
+                    .zip(nodata)
+                    .is_some_and(|(a, b)| a.is_nan() && b.is_nan()),
+            "{name} nodata: {:?}, manifest {nodata:?}",
+            r.nodata
+        );
 
         let valid: Vec<usize> = (0..r.len()).filter(|&i| r.is_valid(i)).collect();
         let nodata_count = (r.len() - valid.len()) as u64;
@@ -110,8 +122,19 @@ fn shared_tifs_match_the_manifest() {
 
         let georeferenced = ds["georeferenced"].as_bool().unwrap();
         assert_eq!(r.georef.is_some(), georeferenced, "{name} georef");
-        if let Some(g) = &r.georef {
-            // Every georeferenced set here is EPSG:4326, 3 arc-seconds, north-up.
+        let crs = ds["crs"].as_str().unwrap_or("");
+        if let (Some(g), Some(code)) = (&r.georef, crs.strip_prefix("EPSG:32632")) {
+            // The projected set: UTM zone 32N, 90 m, north-up.
+            assert!(code.is_empty(), "{name} crs {crs}");
+            let keys = &g.geo_key_directory;
+            assert!(
+                keys.chunks(4).any(|k| k == [3072, 0, 1, 32632]),
+                "{name} keys"
+            );
+            assert_eq!((g.geotransform[1], g.geotransform[5]), (90.0, -90.0));
+            assert_eq!((g.geotransform[2], g.geotransform[4]), (0.0, 0.0));
+        } else if let Some(g) = &r.georef {
+            // Every other georeferenced set here is EPSG:4326, 3 arc-seconds, north-up.
             let keys = &g.geo_key_directory;
             assert!(
                 keys.chunks(4).any(|k| k == [2048, 0, 1, 4326]),
