@@ -189,7 +189,7 @@ fn mesh_error_bound_holds_in_every_format() {
         assert_eq!(report["schema_version"], 1);
         let mesh = check_mesh_report(&report, &out);
         assert_eq!(mesh["format"], ext);
-        assert_eq!(mesh["xy_units"], "georeferenced");
+        assert_eq!(mesh["xy_units"], "local_enu");
         assert_eq!(f64_of(&mesh["tolerance"]), e);
         let decoded = &mesh["error_vs_decoded"];
         let original = &mesh["error_vs_original"];
@@ -347,7 +347,7 @@ fn pixel_units_and_z_scale_reach_the_file() {
     }
     assert_eq!(corners, [true; 4], "the mesh covers the grid's corners");
 
-    // The default: georeferenced degrees, heights unscaled.
+    // Georeferenced degrees on request, heights unscaled.
     let geo = dir.path().join("geo.obj");
     let report = json(&[
         "mesh",
@@ -356,6 +356,8 @@ fn pixel_units_and_z_scale_reach_the_file() {
         s(&geo),
         "--threshold",
         "256",
+        "--xy",
+        "degrees",
         "--json",
     ]);
     assert_eq!(report["mesh"]["xy_units"], "georeferenced");
@@ -606,7 +608,7 @@ fn csv_table(args: &[&str]) -> Vec<std::collections::HashMap<String, f64>> {
         .iter()
         .map(str::to_string)
         .collect();
-    assert_eq!(header.len(), 17, "{header:?}");
+    assert_eq!(header.len(), 18, "{header:?}");
     for column in [
         "plane",
         "threshold",

@@ -382,6 +382,10 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             decoded.bytes_used
         );
     }
+    if args.mesh.is_some() {
+        args.mesh_options
+            .check_raster(&decoded.raster, &args.input)?;
+    }
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let reference = match &args.reference {
         None => None,
