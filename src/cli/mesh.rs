@@ -425,7 +425,7 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     args.mesh.check(
         &args.output,
         raster.len() as u64,
-        args.input_args.max_memory,
+        args.input_args.max_memory(),
     )?;
     args.mesh.check_raster(&raster, &args.input)?;
     let budget = match args.bpp {
@@ -460,7 +460,7 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         &args.mesh,
         &args.output,
         Some(&raster),
-        args.input_args.max_memory,
+        args.input_args.max_memory(),
     )?;
     let report = MeshCommandReport {
         schema_version: SCHEMA_VERSION,

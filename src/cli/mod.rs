@@ -72,13 +72,8 @@ pub struct InputArgs {
     /// Read PNG input as Mapbox Terrain-RGB (h = -10000 + (R·65536 + G·256 + B)·0.1).
     #[arg(long)]
     terrain_rgb: bool,
-    /// Refuse inputs with more samples than this.
-    #[arg(long, default_value_t = Limits::default().max_samples)]
-    max_samples: u64,
-    /// Refuse work that may need more memory than this many bytes (the raster and the
-    /// encoder's or decoder's working memory), before allocating anything.
-    #[arg(long, default_value_t = Limits::default().max_memory)]
-    max_memory: u64,
+    #[command(flatten)]
+    limit_args: LimitArgs,
     /// Read TIFFs with lossy-compressed samples (JPEG...): other readers may decode them
     /// ±1 differently, so "lossless" then holds only against this reader.
     #[arg(long)]
@@ -91,6 +86,45 @@ const ENCODE_WORK: WorkMemory = WorkMemory {
     integer: 20,
     float: 48,
 };
+
+/// The limits every command checks sizes from a file against before allocating.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LimitArgs {
+    /// Refuse inputs with more samples than this.
+    #[arg(long, default_value_t = Limits::default().max_samples)]
+    max_samples: u64,
+    /// Refuse work that may need more memory than this many bytes (the raster and the
+    /// encoder's or decoder's working memory), before allocating anything.
+    #[arg(long, default_value_t = Limits::default().max_memory)]
+    max_memory: u64,
+}
+
+impl LimitArgs {
+    /// The codec's view of these limits.
+    fn limits(&self) -> Limits {
+        Limits {
+            max_samples: self.max_samples,
+            max_memory: self.max_memory,
+        }
+    }
+
+    /// Refuses `what` needing `samples` samples and `bytes` bytes beyond the limits.
+    fn check(&self, what: &str, samples: u64, bytes: u64) -> Result<(), CliError> {
+        if samples > self.max_samples {
+            return Err(CliError::OverLimit(format!(
+                "{what} covers {samples} samples, more than --max-samples {}; raise it if the file is trusted",
+                self.max_samples
+            )));
+        }
+        if bytes > self.max_memory {
+            return Err(CliError::OverLimit(format!(
+                "{what} needs {bytes} bytes, more than --max-memory {}; raise it if the machine has it",
+                self.max_memory
+            )));
+        }
+        Ok(())
+    }
+}
 
 /// Bytes a sample of the other raster held beside one being compared (at most an f32).
 const COMPARE_WORK: WorkMemory = WorkMemory {
@@ -112,8 +146,8 @@ impl InputArgs {
     fn read_for(&self, path: &Path, work: WorkMemory) -> Result<Raster, CliError> {
         let options = ReadOptions {
             terrain_rgb: self.terrain_rgb,
-            max_samples: self.max_samples,
-            max_memory: self.max_memory,
+            max_samples: self.limit_args.max_samples,
+            max_memory: self.limit_args.max_memory,
             work,
             accept_lossy: self.accept_lossy_input,
         };
@@ -123,10 +157,11 @@ impl InputArgs {
     }
 
     fn limits(&self) -> Limits {
-        Limits {
-            max_samples: self.max_samples,
-            max_memory: self.max_memory,
-        }
+        self.limit_args.limits()
+    }
+
+    fn max_memory(&self) -> u64 {
+        self.limit_args.max_memory
     }
 }
 
