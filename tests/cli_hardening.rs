@@ -4,25 +4,10 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
+use support::{s, sample, wavemesh};
+
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-fn wavemesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(name)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()

@@ -8,8 +8,12 @@
 //! `..._needs_chromium_and_three` (`chromium` on the PATH and
 //! `tests/render/node_modules/three`, installed by `npm install` in `tests/render`).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
+
+use support::{json, s, sample, scratch, stdout, wavemesh};
+
+use std::path::Path;
+use std::process::Command;
 
 use gltf::buffer::Source;
 use serde_json::Value;
@@ -22,45 +26,6 @@ const SAMPLE_CENTRE: [f64; 2] = [
     -84.41375 + 201.5 / 1200.0,
     36.732_916_666_666_67 - 172.0 / 1200.0,
 ];
-
-fn wavemesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-/// Runs a command that must succeed; returns its stdout.
-fn stdout(args: &[&str]) -> String {
-    let output = wavemesh(args);
-    assert!(
-        output.status.success(),
-        "wavemesh {args:?} failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    String::from_utf8(output.stdout).expect("stdout is UTF-8")
-}
-
-/// Runs a command that must succeed and parses its JSON report.
-fn json(args: &[&str]) -> Value {
-    serde_json::from_str(&stdout(args)).expect("one JSON object")
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(name)
-}
-
-fn scratch() -> tempfile::TempDir {
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("mesh-frame-tests");
-    std::fs::create_dir_all(&root).unwrap();
-    tempfile::tempdir_in(root).unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// The JSON chunk of a glb.
 fn glb_json(bytes: &[u8]) -> Value {
@@ -118,7 +83,7 @@ fn obj_vertices(text: &str) -> Vec<[f64; 3]> {
 
 #[test]
 fn geographic_glb_is_in_metres_with_its_frame_and_a_matte_material() {
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let out = dir.path().join("fault.glb");
     let report = json(&[
         "mesh",
@@ -181,7 +146,7 @@ fn geographic_glb_is_in_metres_with_its_frame_and_a_matte_material() {
 
 #[test]
 fn degrees_give_the_old_coordinates_and_the_frame_maps_them_to_metres() {
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let input = sample("jacksboro_fault.tif");
     let metric = dir.path().join("metric.obj");
     let degrees = dir.path().join("degrees.obj");
@@ -247,7 +212,7 @@ fn write_projected(path: &Path) {
 
 #[test]
 fn projected_dems_keep_their_coordinates() {
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let input = dir.path().join("utm.tif");
     write_projected(&input);
     let mut files = Vec::new();
@@ -282,7 +247,7 @@ fn shared_projected_dem_stays_in_utm_needs_shared_dems() {
         );
         return;
     }
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let out = dir.path().join("utm.obj");
     let report = json(&[
         "mesh",
@@ -312,7 +277,7 @@ fn write_asc(path: &Path, cols: usize, rows: usize, values: &str) {
 
 #[test]
 fn rasters_with_nothing_to_mesh_are_an_error_and_write_nothing() {
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let row = dir.path().join("row.asc");
     write_asc(&row, 6, 1, "1 2 3 4 5 6");
     let voids = dir.path().join("voids.asc");
@@ -339,7 +304,7 @@ fn rasters_with_nothing_to_mesh_are_an_error_and_write_nothing() {
 
 #[test]
 fn uncovered_samples_are_reported_beside_the_errors() {
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let input = dir.path().join("islands.asc");
     // A 2 × 2 valid block (meshed) and valid samples cut off by nodata (not meshed).
     write_asc(
@@ -494,7 +459,7 @@ fn rendered_glb_shows_terrain_needs_chromium_and_three() {
         );
         return;
     }
-    let dir = scratch();
+    let dir = scratch("mesh-frame-tests");
     let mut shots = Vec::new();
     for xy in ["geo", "degrees"] {
         let sub = dir.path().join(xy);

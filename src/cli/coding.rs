@@ -11,7 +11,9 @@ use wavemesh_codec::{
 };
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
-use super::{timed, with_codec_progress, CliError, InputArgs, LimitArgs, WaveletArg, Workload};
+use super::{
+    print_json, timed, with_codec_progress, CliError, InputArgs, LimitArgs, WaveletArg, Workload,
+};
 
 /// Version of every JSON object the CLI prints.
 pub const SCHEMA_VERSION: u32 = 1;
@@ -697,14 +699,6 @@ fn print_distortion(d: &Distortion) {
             String::new()
         },
         if d.identical { " | bit-identical" } else { "" }
-    );
-}
-
-fn print_json<T: Serialize>(value: &T) {
-    // serde_json writes non-finite floats as null; infinite PSNR (identical) is thus null.
-    println!(
-        "{}",
-        serde_json::to_string(value).expect("reports serialise")
     );
 }
 

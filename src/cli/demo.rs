@@ -18,7 +18,7 @@ use wavemesh_codec::{
 
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
 use super::mesh::uncovered_note;
-use super::{timed, CliError, InputArgs};
+use super::{print_json, timed, CliError, InputArgs};
 
 /// The sample the demo uses when none is given, built into the binary so that an
 /// installed `wavemesh demo` runs anywhere.
@@ -295,10 +295,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         tables,
     };
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(&report).expect("reports serialise")
-        );
+        print_json(&report);
         return Ok(());
     }
     println!(

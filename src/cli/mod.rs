@@ -352,6 +352,15 @@ fn with_codec_progress<T>(message: &str, load: Workload, work: impl FnOnce() -> 
     out
 }
 
+/// Prints a report as one line of JSON on stdout. serde_json writes non-finite floats
+/// as null: an infinite PSNR (identical rasters) is null.
+fn print_json<T: serde::Serialize>(value: &T) {
+    println!(
+        "{}",
+        serde_json::to_string(value).expect("reports serialise")
+    );
+}
+
 /// Wall-clock seconds of `work`, and the heap peak above the heap in use before it.
 fn timed<T>(work: impl FnOnce() -> T) -> (T, f64, usize) {
     let start = Instant::now();
