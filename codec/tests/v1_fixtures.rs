@@ -58,7 +58,7 @@ fn v1_georeferencing_and_nodata_survive() {
     assert_eq!(decoded.raster.nodata, Some(-32768.0));
     let georef = decoded.raster.georef.expect("georeferenced");
     assert_eq!(georef.geotransform[1], 1.0 / 1200.0);
-    assert_eq!(georef.geotransform[3], 36.732916666666668);
+    assert_eq!(georef.geotransform[3], 36.73291666666667);
     assert_eq!(
         georef.geo_key_directory,
         [
