@@ -268,6 +268,14 @@ impl Header {
     }
 }
 
+/// `georef` as a version-2 file carries it: a CRS its EPSG code says completely is reduced
+/// to the code's three GeoKeys (model type, raster type, code), dropping the keys that
+/// only restate it (citations, degree or metre units, the WGS 84 ellipsoid of EPSG:4326);
+/// any other georeferencing is kept as it is.
+pub fn stored_georef(georef: &Georef) -> Georef {
+    v2::stored_georef(georef)
+}
+
 /// Largest side for which a decoder derives the subband shifts and scales from the
 /// dimensions instead of reading them (deriving costs O(bands · side)).
 const MAX_DERIVED_SIDE: u32 = 1 << 16;

@@ -388,6 +388,18 @@ fn read_georef(r: &mut Reader) -> Result<Georef, CodecError> {
     })
 }
 
+/// See [`super::stored_georef`].
+pub(super) fn stored_georef(georef: &Georef) -> Georef {
+    match epsg_form(georef) {
+        Some(crs) => Georef {
+            geotransform: georef.geotransform,
+            geo_key_directory: crs.keys(),
+            ..Georef::default()
+        },
+        None => georef.clone(),
+    }
+}
+
 /// A CRS given by its EPSG code, as the GeoKeys GTModelType, GTRasterType and
 /// GeographicType or ProjectedCSType say it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
