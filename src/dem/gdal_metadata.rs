@@ -26,7 +26,7 @@ pub(super) fn parse(xml: &str) -> Result<Metadata, DemError> {
         if sample.is_some_and(|s| s != "0") || item.attribute("format") == Some("xml") {
             continue;
         }
-        let value = item.text().unwrap_or("").to_string();
+        let value = unescape_value(item.text().unwrap_or(""));
         let number = || {
             value.trim().parse::<f64>().map_err(|_| {
                 DemError::Malformed(format!("GDAL_METADATA holds a {} of '{value}'", role(item)))
@@ -46,6 +46,15 @@ pub(super) fn parse(xml: &str) -> Result<Metadata, DemError> {
         }
     }
     Ok(metadata)
+}
+
+/// GDAL escapes item values once more than XML needs (`&amp;amp;` for `&`) and unescapes
+/// them after parsing: undo that second layer, keeping text another tool escaped once.
+fn unescape_value(text: &str) -> String {
+    roxmltree::Document::parse(&format!("<v>{text}</v>"))
+        .ok()
+        .and_then(|doc| doc.root_element().text().map(str::to_string))
+        .unwrap_or_else(|| text.to_string())
 }
 
 fn role<'a>(item: roxmltree::Node<'a, '_>) -> &'a str {
@@ -68,7 +77,7 @@ pub(super) fn to_tiff_xml(metadata: &Metadata) -> Option<String> {
             xml,
             "  <Item name=\"{}\"{domain}{sample}>{}</Item>",
             escape(&item.name),
-            escape(&item.value)
+            escape(&escape(&item.value))
         );
     }
     for (name, role, value) in band_roles(metadata) {
@@ -76,7 +85,7 @@ pub(super) fn to_tiff_xml(metadata: &Metadata) -> Option<String> {
         let _ = writeln!(
             xml,
             "  <Item name=\"{name}\" sample=\"0\" role=\"{role}\">{}</Item>",
-            escape(&value)
+            escape(&escape(&value))
         );
     }
     xml.push_str("</GDALMetadata>");
@@ -188,7 +197,7 @@ mod tests {
 
     const COPERNICUS: &str = r#"<GDALMetadata>
   <Item name="DTED_VerticalDatum">E08</Item>
-  <Item name="AREA" domain="EXTRA">a &lt;b&gt; &amp; "c"</Item>
+  <Item name="AREA" domain="EXTRA">a &amp;lt;b&amp;gt; &amp;amp; &amp;quot;c&amp;quot;</Item>
   <Item name="OFFSET" sample="0" role="offset">100</Item>
   <Item name="SCALE" sample="0" role="scale">0.1</Item>
   <Item name="DESCRIPTION" sample="0" role="description">elevation</Item>
