@@ -883,6 +883,23 @@ mod tests {
             [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 1, 2048, 0, 1, 4326]
         );
         assert!(georef.geo_double_params.is_empty() && georef.geo_ascii_params.is_empty());
+        // UTM zone 32N as GDAL writes it.
+        let utm = Georef {
+            geotransform: [618181.9, 90.0, 0.0, 6432695.2, 0.0, -90.0],
+            geo_key_directory: vec![
+                1, 1, 0, 7, 1024, 0, 1, 1, 1025, 0, 1, 1, 1026, 34737, 22, 0, 2049, 34737, 7, 22,
+                2054, 0, 1, 9102, 3072, 0, 1, 32632, 3076, 0, 1, 9001,
+            ],
+            geo_double_params: vec![],
+            geo_ascii_params: "WGS 84 / UTM zone 32N|WGS 84|".into(),
+        };
+        assert_eq!(
+            stored_georef(&utm).geo_key_directory,
+            [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32632]
+        );
+        h.georef = Some(utm.clone());
+        let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+        assert_eq!(parsed.georef, Some(stored_georef(&utm)));
         // A key the code does not imply (a vertical datum) keeps the full form.
         let mut vertical = gdal_epsg4326();
         vertical.geo_key_directory[3] += 1;

@@ -467,8 +467,8 @@ fn epsg_form(georef: &Georef) -> Option<EpsgCrs> {
         (id, 0) if id == crs.code_key() => true,
         // GTCitation, GeogCitation, PCSCitation.
         (1026 | 2049 | 3073, 34737) => true,
-        // Angular unit degree; linear unit metre.
-        (2054, 0) => crs.model == MODEL_GEOGRAPHIC && k[3] == 9102,
+        // Angular unit degree (GDAL writes it for projected CRSs too); linear unit metre.
+        (2054, 0) => k[3] == 9102,
         (3076, 0) => crs.model == MODEL_PROJECTED && k[3] == 9001,
         // Semi-major, semi-minor axis, inverse flattening of WGS 84.
         (2057, 34736) => wgs84 && double(georef, k) == Some(6378137.0),
