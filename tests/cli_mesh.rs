@@ -828,7 +828,7 @@ fn meshes_larger_than_the_memory_limit_are_refused_before_any_work() {
     // 403 × 344 samples need far more than 100 kB for a mesh.
     let message = fails(
         &["mesh", s(&input), "-o", s(&out), "--max-memory", "100000"],
-        2,
+        3,
     );
     assert!(message.contains("--max-memory"), "{message}");
     assert!(!out.exists());
@@ -847,7 +847,7 @@ fn meshes_larger_than_the_memory_limit_are_refused_before_any_work() {
             "--max-memory",
             "1000000",
         ],
-        2,
+        3,
     );
     assert!(message.contains("--max-memory"), "{message}");
     assert!(!out.exists() && !dem.exists());

@@ -12,7 +12,7 @@ use wavemesh_codec::{
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
 use super::metadata_report::MetadataReport;
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{timed, with_codec_progress, CliError, InputArgs, WaveletArg, Workload};
 
 /// Version of every JSON object the CLI prints.
 pub const SCHEMA_VERSION: u32 = 1;
@@ -71,9 +71,6 @@ pub struct DecodeArgs {
     /// Report PSNR/RMSE/max error of the decoded DEM against this one.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
-    /// Refuse streams that need more decoder memory than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     /// Treat damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix with a warning.
     #[arg(long)]
@@ -81,12 +78,12 @@ pub struct DecodeArgs {
     /// Also write the mesh of the decoder's zerotree (.glb, .obj or .ply).
     #[arg(long, value_name = "MESH")]
     mesh: Option<PathBuf>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Mesh (with --mesh)")]
     mesh_options: MeshOptions,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Limits, and reading the --reference DEM")]
     input_args: InputArgs,
 }
 
@@ -141,7 +138,9 @@ struct EncodeReport<'a> {
 
 pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
-    let raster = args.input_args.read(&args.input)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
+    warn_about_output_extension(&args.output);
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let samples = (raster.width * raster.height) as f64;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
@@ -167,13 +166,16 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         ));
     }
     options.levels = args.levels;
-    let (encoded, seconds, peak) =
-        with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
+    let (encoded, seconds, peak) = with_codec_progress("encoding", Workload::of(&raster), || {
+        timed(|| encode_raster(&raster, &options))
+    });
     let encoded = encoded.map_err(CliError::Encode)?;
     let verified = if args.verify {
-        Some(with_progress("verifying", || {
-            verify_encoding(&raster, &encoded)
-        })?)
+        Some(with_codec_progress(
+            "verifying",
+            Workload::of(&raster),
+            || verify_encoding(&raster, &encoded),
+        )?)
     } else {
         None
     };
@@ -212,7 +214,9 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         verified,
         distortion,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -232,11 +236,26 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             seconds,
             report.encode_msamples_per_second
         );
+        if let Some(v) = &report.verified {
+            println!(
+                "  verified: decoded and checked before writing ({})",
+                verified_promise(v)
+            );
+        }
         if let Some(d) = &report.distortion {
             print_distortion(d);
         }
     }
     Ok(())
+}
+
+/// What `--verify` checked, in words.
+fn verified_promise(d: &Distortion) -> String {
+    if d.identical {
+        "bit-exact".into()
+    } else {
+        format!("max error {} within the bound", d.max_error)
+    }
 }
 
 /// Decodes `encoded` and checks the mode's promise against `raster`.
@@ -245,9 +264,7 @@ fn verify_encoding(
     encoded: &wavemesh_codec::Encoded,
 ) -> Result<Distortion, CliError> {
     let fail = |what: String| {
-        CliError::Encode(wavemesh_codec::CodecError::InvalidParameters(format!(
-            "verification failed: {what}; nothing was written"
-        )))
+        CliError::CheckFailed(format!("verification failed: {what}; nothing was written"))
     };
     let decoded = decode_stream(&encoded.bytes, &DecodeOptions::default())
         .map_err(|e| fail(e.to_string()))?;
@@ -311,9 +328,11 @@ struct DamageReport {
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
     let data = std::fs::read(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let (header, header_len) =
+        Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
         (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {
@@ -326,10 +345,12 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
         (None, bytes) => bytes,
     };
+    let smallest = header_len as u64 + u64::from(header.mask_len);
+    let max_bytes = max_bytes.map(|asked| at_least_decodable(asked, smallest, samples));
     let options = DecodeOptions {
         max_bytes,
         max_passes: None,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         strict: args.strict,
         significance_map: args.mesh.is_some(),
     };
@@ -343,11 +364,15 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         if mesh == &args.output {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
-        args.mesh_options.check(mesh, samples, args.max_memory)?;
+        args.mesh_options
+            .check(mesh, samples, args.input_args.max_memory)?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
-    let (decoded, seconds, peak) =
-        with_progress("decoding", || timed(|| decode_stream(&data, &options)));
+    let (decoded, seconds, peak) = with_codec_progress(
+        "decoding",
+        Workload::new(samples, header.sample_type),
+        || timed(|| decode_stream(&data, &options)),
+    );
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     if let Some(d) = decoded.damage {
         eprintln!(
@@ -373,7 +398,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             &args.mesh_options,
             path,
             reference.as_ref(),
-            args.max_memory,
+            args.input_args.max_memory,
         )?),
         None => None,
     };
@@ -403,7 +428,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         distortion,
         mesh,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -616,6 +643,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let original = args.input_args.read(&args.original)?;
     let other = args.input_args.read(&args.other)?;
     let distortion = compare_rasters(&original, &other, &args.other)?;
+    let mismatches = distortion.nodata_mismatches;
     if args.json {
         print_json(&CompareReport {
             schema_version: SCHEMA_VERSION,
@@ -625,7 +653,17 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             distortion,
         });
     } else {
+        if mismatches > 0 {
+            println!("VOIDS DIFFER: {mismatches} samples are nodata in one raster and valid in the other; the errors below cover only the samples valid in both");
+        }
         print_distortion(&distortion);
+    }
+    if mismatches > 0 {
+        return Err(CliError::CheckFailed(format!(
+            "{} and {} differ in {mismatches} voids (nodata in one, valid in the other)",
+            args.original.display(),
+            args.other.display()
+        )));
     }
     Ok(())
 }
@@ -662,6 +700,44 @@ fn print_json<T: Serialize>(value: &T) {
         "{}",
         serde_json::to_string(value).expect("reports serialise")
     );
+}
+
+/// A prefix of `asked` bytes, raised to `smallest` (the header and nodata mask, the
+/// shortest prefix that decodes) with a note on stderr saying the rate used.
+fn at_least_decodable(asked: u64, smallest: u64, samples: u64) -> u64 {
+    if asked >= smallest {
+        return asked;
+    }
+    eprintln!(
+        "wavemesh: note: {asked} bytes is less than the smallest decodable prefix; decoding {smallest} bytes ({:.4} bpp): the header and nodata mask",
+        smallest as f64 * 8.0 / samples as f64
+    );
+    smallest
+}
+
+/// Whether the output is `-` (standard output, where no report is printed then);
+/// `--json` would share standard output with the data and is refused.
+fn writes_to_stdout(output: &Path, json: bool) -> Result<bool, CliError> {
+    let to_stdout = output.as_os_str() == "-";
+    if to_stdout && json {
+        return Err(CliError::Usage(
+            "-o - writes the data to standard output; --json cannot share it".into(),
+        ));
+    }
+    Ok(to_stdout)
+}
+
+/// Warns when an `.ezw` stream is about to be written under a DEM file's extension.
+fn warn_about_output_extension(output: &Path) {
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if let Some(ext) = ext.filter(|e| e != "ezw") {
+        eprintln!(
+            "wavemesh: warning: {}: writing a .ezw stream under a .{ext} name (decode makes DEM files)",
+            output.display()
+        );
+    }
 }
 
 /// Refuses to write over the input file.

@@ -19,18 +19,22 @@ use wavemesh_codec::{
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
 use super::{timed, CliError, InputArgs};
 
-/// The sample the demo uses when none is given.
-const DEFAULT_SAMPLE: &str = "samples/jacksboro_fault.tif";
+/// The sample the demo uses when none is given, built into the binary so that an
+/// installed `wavemesh demo` runs anywhere.
+const BUNDLED_SAMPLE: &[u8] = include_bytes!("../../samples/jacksboro_fault.tif");
+
+/// The name the bundled sample gets in the output folder.
+const BUNDLED_NAME: &str = "jacksboro_fault.tif";
 
 /// Height tolerance of the demo's mesh, data units (metres for the sample).
 const MESH_TOLERANCE: f64 = 5.0;
 
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
-    /// DEM to run on (default: the bundled samples/jacksboro_fault.tif).
+    /// DEM to run on (default: the sample built into the binary, USGS jacksboro_fault).
     input: Option<PathBuf>,
-    /// Where to write the encoded and decoded files.
-    #[arg(long, default_value = "target/wavemesh-demo")]
+    /// Where to write the encoded and decoded files (and the bundled sample).
+    #[arg(long, default_value = "wavemesh-demo")]
     out_dir: PathBuf,
     /// Print one JSON object on stdout instead of the table.
     #[arg(long)]
@@ -86,16 +90,14 @@ struct DemoReport<'a> {
     tables: Vec<TableRow>,
 }
 
-fn sample_path(args: &DemoArgs) -> PathBuf {
+/// The DEM to run on: the one given, else the bundled sample written into `out_dir`.
+fn sample_path(args: &DemoArgs) -> Result<PathBuf, CliError> {
     if let Some(p) = &args.input {
-        return p.clone();
+        return Ok(p.clone());
     }
-    let local = PathBuf::from(DEFAULT_SAMPLE);
-    if local.exists() {
-        local
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SAMPLE)
-    }
+    let path = args.out_dir.join(BUNDLED_NAME);
+    write_output(&path, BUNDLED_SAMPLE)?;
+    Ok(path)
 }
 
 fn encode_or_fail(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, f64), CliError> {
@@ -190,11 +192,11 @@ fn decode_row(
 }
 
 pub fn run(args: &DemoArgs) -> Result<(), CliError> {
-    let path = sample_path(args);
-    let raster = args.input_args.read(&path)?;
-    let samples = (raster.width * raster.height) as f64;
     std::fs::create_dir_all(&args.out_dir)
         .map_err(|e| CliError::Output(args.out_dir.clone(), e.to_string()))?;
+    let path = sample_path(args)?;
+    let raster = args.input_args.read_to_encode(&path)?;
+    let samples = (raster.width * raster.height) as f64;
     let mut rows = Vec::new();
 
     // Lossless 5/3.

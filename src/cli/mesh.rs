@@ -14,7 +14,7 @@ use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{timed, with_codec_progress, with_progress, CliError, InputArgs, WaveletArg, Workload};
 
 /// Which coefficients split a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -97,8 +97,8 @@ impl MeshOptions {
         let (target, _) = self.target(0)?;
         let needed = mesh_memory(samples, target);
         if needed > max_memory {
-            return Err(CliError::Usage(format!(
-                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}"
+            return Err(CliError::OverLimit(format!(
+                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}; raise it if the machine has it"
             )));
         }
         Ok(())
@@ -280,6 +280,16 @@ fn mesh_memory(samples: u64, target: MeshTarget) -> u64 {
 
 /// The mesh format of `path`'s extension.
 fn mesh_format(path: &Path) -> Result<MeshFormat, CliError> {
+    if path.as_os_str() == "-" {
+        return Err(CliError::Usage(
+            "meshes are not written to standard output (-); name a file, a device or a FIFO".into(),
+        ));
+    }
+    // A device or FIFO has no extension to go by: binary glTF, the one-file format.
+    let is_stream = wavemesh::atomic::destination(path).is_ok_and(|d| d.is_stream());
+    if path.extension().is_none() && is_stream {
+        return Ok(MeshFormat::Glb);
+    }
     MeshFormat::from_path(path).ok_or_else(|| {
         CliError::Usage(format!(
             "{}: unknown mesh format (use .glb, .obj or .ply)",
@@ -328,9 +338,6 @@ pub struct MeshArgs {
     /// Encode lossy (9/7) at this many bits per sample before meshing (default lossless).
     #[arg(long)]
     bpp: Option<f64>,
-    /// Refuse DEMs whose decode or mesh may need more than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     #[command(flatten)]
     mesh: MeshOptions,
     /// Print one JSON object on stdout instead of text.
@@ -361,9 +368,12 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
             "the output would overwrite the input".into(),
         ));
     }
-    let raster = args.input_args.read(&args.input)?;
-    args.mesh
-        .check(&args.output, raster.len() as u64, args.max_memory)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
+    args.mesh.check(
+        &args.output,
+        raster.len() as u64,
+        args.input_args.max_memory,
+    )?;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
             Some((bpp * raster.len() as f64 / 8.0).floor() as u64)
@@ -377,23 +387,26 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     };
     let options = EncodeOptions::new(Quality::Lossless, budget);
     let (encoded, encode_seconds, _) =
-        with_progress("encoding", || timed(|| encode(&raster, &options)));
+        with_codec_progress("encoding", Workload::of(&raster), || {
+            timed(|| encode(&raster, &options))
+        });
     let encoded = encoded.map_err(CliError::Encode)?;
     let decode_options = DecodeOptions {
         significance_map: true,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         ..DecodeOptions::default()
     };
-    let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
-        timed(|| decode(&encoded.bytes, &decode_options))
-    });
+    let (decoded, decode_seconds, decode_peak) =
+        with_codec_progress("decoding", Workload::of(&raster), || {
+            timed(|| decode(&encoded.bytes, &decode_options))
+        });
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let mesh = mesh_decoded(
         &decoded,
         &args.mesh,
         &args.output,
         Some(&raster),
-        args.max_memory,
+        args.input_args.max_memory,
     )?;
     let report = MeshCommandReport {
         schema_version: SCHEMA_VERSION,
@@ -483,7 +496,7 @@ struct TableReport<'a> {
 }
 
 pub fn table(args: &TableArgs) -> Result<(), CliError> {
-    let raster = args.input_args.read(&args.input)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let rows = match (&args.thresholds, &args.bpp) {
         (Some(ts), _) => {
             if let Some(t) = ts.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
@@ -513,8 +526,10 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         options.wavelet = args.wavelet.into();
         options.budget_bytes = Some((top * raster.len() as f64 / 8.0).ceil() as u64);
     }
-    let encoded =
-        with_progress("encoding", || encode(&raster, &options)).map_err(CliError::Encode)?;
+    let encoded = with_codec_progress("encoding", Workload::of(&raster), || {
+        encode(&raster, &options)
+    })
+    .map_err(CliError::Encode)?;
     let rule = match args.rule {
         RuleArg::Zerotree => SplitRule::Zerotree,
         RuleArg::Own => SplitRule::OwnCoefficients,
