@@ -2,12 +2,14 @@
 //! GDAL_METADATA with scale, offset, description, units and free items) goes through
 //! `encode` and `decode` to GeoTIFF, ESRI ASCII grid and PNG, and every item arrives —
 //! in the GeoTIFF's tags, the `.prj`, the `.pgw` and the `.png.aux.xml`. When Debian's
-//! GDAL is installed, `gdalinfo -json` must see the same; without it that test says it
-//! skipped.
+//! GDAL is installed, `gdalinfo -json` must see the same; without it that test says
+//! SKIPPED where `cargo test` shows it.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+mod support;
 
 use tiff::encoder::{colortype, TiffEncoder};
 use tiff::tags::Tag;
@@ -158,8 +160,8 @@ fn png_output_gets_a_world_file_and_aux_xml() {
     }
 }
 
-fn gdalinfo(path: &Path) -> serde_json::Value {
-    let out = Command::new("gdalinfo")
+fn gdalinfo(program: &Path, path: &Path) -> serde_json::Value {
+    let out = Command::new(program)
         .args(["-json", "-mdd", "all", s(path)])
         .output()
         .unwrap();
@@ -172,16 +174,14 @@ fn gdalinfo(path: &Path) -> serde_json::Value {
 }
 
 #[test]
-fn gdalinfo_sees_the_metadata_skipped_without_gdal() {
-    if Command::new("gdalinfo").arg("--version").output().is_err() {
-        eprintln!(
-            "SKIPPED gdalinfo_sees_the_metadata: gdalinfo not found (apt-get install gdal-bin)"
-        );
+fn gdalinfo_sees_the_metadata() {
+    let test = "gis_metadata::gdalinfo_sees_the_metadata";
+    let Some(program) = support::program(test, "gdalinfo", "Debian: gdal-bin") else {
         return;
-    }
+    };
     let tif = scratch("gdal.tif");
     round_trip(&tif);
-    let info = gdalinfo(&tif);
+    let info = gdalinfo(&program, &tif);
     let band = &info["bands"][0];
     assert_eq!(band["scale"], 0.1);
     assert_eq!(band["offset"], 100.0);
@@ -200,7 +200,7 @@ fn gdalinfo_sees_the_metadata_skipped_without_gdal() {
 
     let png = scratch("gdal.png");
     round_trip(&png);
-    let info = gdalinfo(&png);
+    let info = gdalinfo(&program, &png);
     assert_eq!(
         info["geoTransform"],
         serde_json::json!([11.0, 0.5, 0.0, 47.5, 0.0, -0.25])
@@ -219,7 +219,7 @@ fn gdalinfo_sees_the_metadata_skipped_without_gdal() {
 
     let asc = scratch("gdal.asc");
     round_trip(&asc);
-    let info = gdalinfo(&asc);
+    let info = gdalinfo(&program, &asc);
     assert!(info["coordinateSystem"]["wkt"]
         .as_str()
         .unwrap()
