@@ -17,6 +17,7 @@ use wavemesh::dem::{read_dem, ReadOptions};
 
 const GDAL_METADATA: &str = r#"<GDALMetadata>
   <Item name="DTED_VerticalDatum">E08</Item>
+  <Item name="PLACE">Z&#252;rich</Item>
   <Item name="SOURCE" domain="PROVENANCE">Copernicus &amp; "friends"</Item>
   <Item name="OFFSET" sample="0" role="offset">100</Item>
   <Item name="SCALE" sample="0" role="scale">0.1</Item>
@@ -105,7 +106,8 @@ fn geotiff_metadata_survives_encode_and_decode() {
     assert_eq!((m.scale, m.offset), (Some(0.1), Some(100.0)));
     assert_eq!(m.description.as_deref(), Some("elevation"));
     assert_eq!(m.unit_type.as_deref(), Some("m"));
-    assert_eq!(m.items.len(), 3, "{:?}", m.items);
+    assert_eq!(m.items.len(), 4, "{:?}", m.items);
+    assert_eq!(m.items[1].value, "Zürich");
     let decoded = read_dem(&out, &ReadOptions::default()).unwrap();
     assert_eq!(&decoded.metadata, m);
     assert_eq!(decoded.nodata, Some(0.0));
@@ -189,6 +191,7 @@ fn gdalinfo_sees_the_metadata() {
     assert_eq!(band["unit"], "m");
     assert_eq!(band["metadata"][""]["QUALITY"], "good");
     assert_eq!(info["metadata"][""]["DTED_VerticalDatum"], "E08");
+    assert_eq!(info["metadata"][""]["PLACE"], "Zürich");
     assert_eq!(
         info["metadata"]["PROVENANCE"]["SOURCE"],
         "Copernicus & \"friends\""

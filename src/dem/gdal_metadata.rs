@@ -89,7 +89,21 @@ pub(super) fn to_tiff_xml(metadata: &Metadata) -> Option<String> {
         );
     }
     xml.push_str("</GDALMetadata>");
-    any.then_some(xml)
+    any.then(|| ascii_only(&xml))
+}
+
+/// `xml` with every non-ASCII character as a character reference (`&#246;`): TIFF ASCII
+/// tags hold 7-bit text.
+fn ascii_only(xml: &str) -> String {
+    let mut out = String::with_capacity(xml.len());
+    for c in xml.chars() {
+        if c.is_ascii() {
+            out.push(c);
+        } else {
+            let _ = write!(out, "&#{};", u32::from(c));
+        }
+    }
+    out
 }
 
 /// (item name, GDAL role, value) of the band's scale, offset, description and unit type.

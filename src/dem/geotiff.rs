@@ -504,6 +504,24 @@ mod tests {
         back
     }
 
+    #[test]
+    fn gdal_metadata_round_trips_including_non_ascii_text() {
+        let mut r = Raster::new(3, 2, Samples::I16(vec![1, 2, 3, 4, 5, 6])).unwrap();
+        r.metadata = Metadata {
+            scale: Some(0.25),
+            offset: Some(-3.5),
+            description: Some("Höhe über NN".into()),
+            unit_type: Some("m".into()),
+            crs_wkt: None,
+            items: vec![wavemesh_codec::MetadataItem {
+                name: "DTED_VerticalDatum".into(),
+                value: "E08".into(),
+                ..Default::default()
+            }],
+        };
+        assert_eq!(round_trip(&r).metadata, r.metadata);
+    }
+
     fn epsg4326() -> Georef {
         Georef {
             geotransform: [
