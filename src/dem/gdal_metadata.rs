@@ -132,29 +132,40 @@ pub(super) fn to_pam_xml(raster: &Raster, srs: Option<&str>) -> String {
         let _ = writeln!(xml, "  <GeoTransform>{}</GeoTransform>", gt.join(", "));
     }
     write_pam_items(&mut xml, "  ", metadata.items.iter().filter(|i| !i.band));
-    xml.push_str("  <PAMRasterBand band=\"1\">\n");
-    if let Some(d) = &metadata.description {
-        let _ = writeln!(xml, "    <Description>{}</Description>", escape(d));
+    let band = pam_band(raster);
+    if !band.is_empty() {
+        let _ = write!(
+            xml,
+            "  <PAMRasterBand band=\"1\">\n{band}  </PAMRasterBand>\n"
+        );
     }
-    if let Some(nodata) = raster.nodata {
-        let text = if nodata.is_nan() {
+    xml.push_str("</PAMDataset>\n");
+    xml
+}
+
+/// The PAM elements of the band: description, nodata, unit type, offset, scale, items.
+fn pam_band(raster: &Raster) -> String {
+    let metadata = &raster.metadata;
+    let mut xml = String::new();
+    let nodata = raster.nodata.map(|v| {
+        if v.is_nan() {
             "nan".to_string()
         } else {
-            nodata.to_string()
-        };
-        let _ = writeln!(xml, "    <NoDataValue>{text}</NoDataValue>");
-    }
-    if let Some(u) = &metadata.unit_type {
-        let _ = writeln!(xml, "    <UnitType>{}</UnitType>", escape(u));
-    }
-    if let Some(v) = metadata.offset {
-        let _ = writeln!(xml, "    <Offset>{v}</Offset>");
-    }
-    if let Some(v) = metadata.scale {
-        let _ = writeln!(xml, "    <Scale>{v}</Scale>");
+            v.to_string()
+        }
+    });
+    for (element, value) in [
+        ("Description", metadata.description.clone()),
+        ("NoDataValue", nodata),
+        ("UnitType", metadata.unit_type.clone()),
+        ("Offset", metadata.offset.map(|v| v.to_string())),
+        ("Scale", metadata.scale.map(|v| v.to_string())),
+    ] {
+        if let Some(value) = value {
+            let _ = writeln!(xml, "    <{element}>{}</{element}>", escape(&value));
+        }
     }
     write_pam_items(&mut xml, "    ", metadata.items.iter().filter(|i| i.band));
-    xml.push_str("  </PAMRasterBand>\n</PAMDataset>\n");
     xml
 }
 
