@@ -12,7 +12,9 @@ use wavemesh_codec::{
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
 use super::metadata_report::MetadataReport;
-use super::{timed, with_codec_progress, CliError, InputArgs, WaveletArg, Workload};
+use super::{
+    print_json, timed, with_codec_progress, CliError, InputArgs, LimitArgs, WaveletArg, Workload,
+};
 
 /// Version of every JSON object the CLI prints.
 pub const SCHEMA_VERSION: u32 = 1;
@@ -94,6 +96,8 @@ pub struct InfoArgs {
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    limit_args: LimitArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -365,7 +369,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
         args.mesh_options
-            .check(mesh, samples, args.input_args.max_memory)?;
+            .check(mesh, samples, args.input_args.max_memory())?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
     let (decoded, seconds, peak) = with_codec_progress(
@@ -383,6 +387,10 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             decoded.bytes_used
         );
     }
+    if args.mesh.is_some() {
+        args.mesh_options
+            .check_raster(&decoded.raster, &args.input)?;
+    }
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let reference = match &args.reference {
         None => None,
@@ -398,7 +406,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             &args.mesh_options,
             path,
             reference.as_ref(),
-            args.input_args.max_memory,
+            args.input_args.max_memory(),
         )?),
         None => None,
     };
@@ -505,6 +513,12 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let (w, h) = (header.width as usize, header.height as usize);
     let payload_start = (header_len + header.mask_len as usize) as u64;
+    let samples = header.sample_count();
+    // Counting the valid samples decodes the nodata mask: one bit a sample.
+    let mask_bytes = if header.mask_len > 0 { samples / 8 } else { 0 };
+    args.limit_args
+        .check("the header's raster", samples, mask_bytes)
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
     let valid = if header.mask_len > 0 {
         let framed = data.get(header_len..).unwrap_or(&[]);
         let mask = wavemesh_codec::container::unframe(framed, header.mask_len as usize);
@@ -691,14 +705,6 @@ fn print_distortion(d: &Distortion) {
             String::new()
         },
         if d.identical { " | bit-identical" } else { "" }
-    );
-}
-
-fn print_json<T: Serialize>(value: &T) {
-    // serde_json writes non-finite floats as null; infinite PSNR (identical) is thus null.
-    println!(
-        "{}",
-        serde_json::to_string(value).expect("reports serialise")
     );
 }
 

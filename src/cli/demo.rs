@@ -17,7 +17,8 @@ use wavemesh_codec::{
 };
 
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
-use super::{timed, CliError, InputArgs};
+use super::mesh::uncovered_note;
+use super::{print_json, timed, CliError, InputArgs};
 
 /// The sample the demo uses when none is given, built into the binary so that an
 /// installed `wavemesh demo` runs anywhere.
@@ -135,10 +136,8 @@ fn demo_mesh(raster: &Raster, lossless: &Encoded, path: &Path) -> Result<DemoMes
             error.max_error
         )));
     }
-    let placement = match &raster.georef {
-        Some(g) => Placement::georeferenced(g.geotransform, 1.0),
-        None => Placement::default(),
-    };
+    let placement = Placement::metric(raster.georef.as_ref(), raster.width, raster.height, 1.0)
+        .map_err(|e| CliError::Input(PathBuf::from("sample"), e.to_string()))?;
     let format = MeshFormat::Glb;
     let start = Instant::now();
     write_mesh(path, mesh, &surface.heights, &placement, format)
@@ -296,10 +295,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         tables,
     };
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(&report).expect("reports serialise")
-        );
+        print_json(&report);
         return Ok(());
     }
     println!(
@@ -341,10 +337,11 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         m.remaining_percent
     );
     println!(
-        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
+        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
         m.error.rmse,
         m.error.psnr_db,
         m.error.max_error,
+        uncovered_note(&m.error),
         m.decode_seconds,
         m.pyramid_seconds,
         m.mesh_seconds,

@@ -73,13 +73,8 @@ pub struct InputArgs {
     /// Read PNG input as Mapbox Terrain-RGB (h = -10000 + (R·65536 + G·256 + B)·0.1).
     #[arg(long)]
     terrain_rgb: bool,
-    /// Refuse inputs with more samples than this.
-    #[arg(long, default_value_t = Limits::default().max_samples)]
-    max_samples: u64,
-    /// Refuse work that may need more memory than this many bytes (the raster and the
-    /// encoder's or decoder's working memory), before allocating anything.
-    #[arg(long, default_value_t = Limits::default().max_memory)]
-    max_memory: u64,
+    #[command(flatten)]
+    limit_args: LimitArgs,
     /// Read TIFFs with lossy-compressed samples (JPEG...): other readers may decode them
     /// ±1 differently, so "lossless" then holds only against this reader.
     #[arg(long)]
@@ -92,6 +87,45 @@ const ENCODE_WORK: WorkMemory = WorkMemory {
     integer: 20,
     float: 48,
 };
+
+/// The limits every command checks sizes from a file against before allocating.
+#[derive(Debug, Clone, clap::Args)]
+pub struct LimitArgs {
+    /// Refuse inputs with more samples than this.
+    #[arg(long, default_value_t = Limits::default().max_samples)]
+    max_samples: u64,
+    /// Refuse work that may need more memory than this many bytes (the raster and the
+    /// encoder's or decoder's working memory), before allocating anything.
+    #[arg(long, default_value_t = Limits::default().max_memory)]
+    max_memory: u64,
+}
+
+impl LimitArgs {
+    /// The codec's view of these limits.
+    fn limits(&self) -> Limits {
+        Limits {
+            max_samples: self.max_samples,
+            max_memory: self.max_memory,
+        }
+    }
+
+    /// Refuses `what` needing `samples` samples and `bytes` bytes beyond the limits.
+    fn check(&self, what: &str, samples: u64, bytes: u64) -> Result<(), CliError> {
+        if samples > self.max_samples {
+            return Err(CliError::OverLimit(format!(
+                "{what} covers {samples} samples, more than --max-samples {}; raise it if the file is trusted",
+                self.max_samples
+            )));
+        }
+        if bytes > self.max_memory {
+            return Err(CliError::OverLimit(format!(
+                "{what} needs {bytes} bytes, more than --max-memory {}; raise it if the machine has it",
+                self.max_memory
+            )));
+        }
+        Ok(())
+    }
+}
 
 /// Bytes a sample of the other raster held beside one being compared (at most an f32).
 const COMPARE_WORK: WorkMemory = WorkMemory {
@@ -113,8 +147,8 @@ impl InputArgs {
     fn read_for(&self, path: &Path, work: WorkMemory) -> Result<Raster, CliError> {
         let options = ReadOptions {
             terrain_rgb: self.terrain_rgb,
-            max_samples: self.max_samples,
-            max_memory: self.max_memory,
+            max_samples: self.limit_args.max_samples,
+            max_memory: self.limit_args.max_memory,
             work,
             accept_lossy: self.accept_lossy_input,
         };
@@ -124,10 +158,11 @@ impl InputArgs {
     }
 
     fn limits(&self) -> Limits {
-        Limits {
-            max_samples: self.max_samples,
-            max_memory: self.max_memory,
-        }
+        self.limit_args.limits()
+    }
+
+    fn max_memory(&self) -> u64 {
+        self.limit_args.max_memory
     }
 }
 
@@ -316,6 +351,15 @@ fn with_codec_progress<T>(message: &str, load: Workload, work: impl FnOnce() -> 
     );
     bar.finish_and_clear();
     out
+}
+
+/// Prints a report as one line of JSON on stdout. serde_json writes non-finite floats
+/// as null: an infinite PSNR (identical rasters) is null.
+fn print_json<T: serde::Serialize>(value: &T) {
+    println!(
+        "{}",
+        serde_json::to_string(value).expect("reports serialise")
+    );
 }
 
 /// Wall-clock seconds of `work`, and the heap peak above the heap in use before it.

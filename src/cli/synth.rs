@@ -6,7 +6,7 @@ use serde::Serialize;
 use wavemesh::synth::{write_geotiff, FractalTerrain};
 
 use super::coding::SCHEMA_VERSION;
-use super::{timed, with_progress, CliError};
+use super::{print_json, timed, with_progress, CliError};
 
 #[derive(Debug, clap::Args)]
 pub struct SynthArgs {
@@ -73,10 +73,7 @@ pub fn run(args: &SynthArgs) -> Result<(), CliError> {
         peak_heap_bytes: peak as u64,
     };
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(&report).expect("reports serialise")
-        );
+        print_json(&report);
     } else {
         println!(
             "{}: {width}x{height} fractal terrain (seed {}), {bytes} bytes, {seconds:.2} s ({:.1} MS/s), heap peak {} bytes",

@@ -39,3 +39,47 @@ pub fn program(test: &str, name: &str, install_hint: &str) -> Option<PathBuf> {
     }
     found
 }
+
+/// Runs the `wavemesh` binary built for these tests.
+pub fn wavemesh(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// Runs a command that must succeed; returns its stdout.
+pub fn stdout(args: &[&str]) -> String {
+    let output = wavemesh(args);
+    assert!(
+        output.status.success(),
+        "wavemesh {args:?} failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8(output.stdout).expect("stdout is UTF-8")
+}
+
+/// Runs a command that must succeed and parses its stdout as one JSON object.
+pub fn json(args: &[&str]) -> serde_json::Value {
+    let out = stdout(args);
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("wavemesh {args:?}: {e}\n{out}"))
+}
+
+/// A file of the bundled `samples/`.
+pub fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("samples")
+        .join(name)
+}
+
+/// A fresh temporary folder under the tests' scratch space (`tag` names the test file).
+pub fn scratch(tag: &str) -> tempfile::TempDir {
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
+    std::fs::create_dir_all(&root).unwrap();
+    tempfile::tempdir_in(root).unwrap()
+}
+
+/// A path as a command-line argument.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
