@@ -7,10 +7,11 @@
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 mod support;
 
+use support::{json, s, scratch, stdout};
 use tiff::encoder::{colortype, TiffEncoder};
 use tiff::tags::Tag;
 use wavemesh::dem::{read_dem, ReadOptions};
@@ -32,36 +33,9 @@ const GEO_KEYS: [u16; 32] = [
     9102, 2057, 34736, 1, 1, 2059, 34736, 1, 0,
 ];
 
-fn wavemesh(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("run wavemesh");
-    assert!(
-        out.status.success(),
-        "wavemesh {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gis-metadata");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    for side in ["prj", "pgw"] {
-        let _ = std::fs::remove_file(path.with_extension(side));
-    }
-    path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// A 40×30 u16 GeoTIFF with every tag above, at `scratch(name)`.
-fn source_tif(name: &str) -> PathBuf {
-    let path = scratch(name);
+/// A 40×30 u16 GeoTIFF with every tag above, written as `dir/source.tif`.
+fn source_tif(dir: &Path) -> PathBuf {
+    let path = dir.join("source.tif");
     let (w, h) = (40u32, 30u32);
     let data: Vec<u16> = (0..w * h)
         .map(|i| 5000 + ((i % w) * 37 + (i / w) * 11) as u16)
@@ -87,21 +61,21 @@ fn source_tif(name: &str) -> PathBuf {
     path
 }
 
-/// Encodes a source GeoTIFF and decodes it to `output`; returns the `.ezw` path.
-fn round_trip(output: &Path) -> PathBuf {
-    let name = output.file_name().unwrap().to_str().unwrap();
-    let ezw = scratch(&format!("{name}.ezw"));
-    let source = source_tif(&format!("{name}.source.tif"));
-    wavemesh(&["encode", s(&source), "-o", s(&ezw)]);
-    wavemesh(&["decode", s(&ezw), "-o", s(output)]);
-    ezw
+/// Encodes the source GeoTIFF into `dir` and decodes it to `dir/output`; returns the
+/// `.ezw` and the output paths.
+fn round_trip(dir: &Path, output: &str) -> (PathBuf, PathBuf) {
+    let ezw = dir.join("metadata.ezw");
+    let out = dir.join(output);
+    stdout(&["encode", s(&source_tif(dir)), "-o", s(&ezw)]);
+    stdout(&["decode", s(&ezw), "-o", s(&out)]);
+    (ezw, out)
 }
 
 #[test]
 fn geotiff_metadata_survives_encode_and_decode() {
-    let out = scratch("decoded.tif");
-    let ezw = round_trip(&out);
-    let source = read_dem(&source_tif("source.tif"), &ReadOptions::default()).unwrap();
+    let dir = scratch("gis_metadata");
+    let (ezw, out) = round_trip(dir.path(), "decoded.tif");
+    let source = read_dem(&dir.path().join("source.tif"), &ReadOptions::default()).unwrap();
     let m = &source.metadata;
     assert_eq!((m.scale, m.offset), (Some(0.1), Some(100.0)));
     assert_eq!(m.description.as_deref(), Some("elevation"));
@@ -116,8 +90,7 @@ fn geotiff_metadata_survives_encode_and_decode() {
     assert_eq!(georef.geotransform, [11.0, 0.5, 0.0, 47.5, 0.0, -0.25]);
     assert!(georef.geo_key_directory.ends_with(&[2048, 0, 1, 4326]));
 
-    let info: serde_json::Value =
-        serde_json::from_slice(&wavemesh(&["info", s(&ezw), "--json"]).stdout).unwrap();
+    let info = json(&["info", s(&ezw), "--json"]);
     assert_eq!(info["format_version"], 2);
     assert_eq!(info["metadata"]["scale"], 0.1);
     assert_eq!(info["metadata"]["offset"], 100.0);
@@ -129,8 +102,8 @@ fn geotiff_metadata_survives_encode_and_decode() {
 
 #[test]
 fn asc_output_gets_its_prj_and_reads_it_back() {
-    let out = scratch("decoded.asc");
-    round_trip(&out);
+    let dir = scratch("gis_metadata");
+    let (_, out) = round_trip(dir.path(), "decoded.asc");
     let prj = std::fs::read_to_string(out.with_extension("prj")).unwrap();
     assert!(prj.starts_with("GEOGCS[\"WGS 84\"") && prj.ends_with("AUTHORITY[\"EPSG\",\"4326\"]]"));
     let back = read_dem(&out, &ReadOptions::default()).unwrap();
@@ -141,12 +114,12 @@ fn asc_output_gets_its_prj_and_reads_it_back() {
 
 #[test]
 fn png_output_gets_a_world_file_and_aux_xml() {
-    let out = scratch("decoded.png");
-    round_trip(&out);
+    let dir = scratch("gis_metadata");
+    let (_, out) = round_trip(dir.path(), "decoded.png");
     let world = std::fs::read_to_string(out.with_extension("pgw")).unwrap();
     let lines: Vec<f64> = world.lines().map(|l| l.parse().unwrap()).collect();
     assert_eq!(lines, [0.5, 0.0, 0.0, -0.25, 11.25, 47.375]);
-    let aux = std::fs::read_to_string(scratch("decoded.png.aux.xml")).unwrap();
+    let aux = std::fs::read_to_string(dir.path().join("decoded.png.aux.xml")).unwrap();
     for needle in [
         "<SRS>GEOGCS[&quot;WGS 84&quot;",
         "<NoDataValue>0</NoDataValue>",
@@ -181,8 +154,8 @@ fn gdalinfo_sees_the_metadata() {
     let Some(program) = support::program(test, "gdalinfo", "Debian: gdal-bin") else {
         return;
     };
-    let tif = scratch("gdal.tif");
-    round_trip(&tif);
+    let dir = scratch("gis_metadata");
+    let (_, tif) = round_trip(dir.path(), "gdal.tif");
     let info = gdalinfo(&program, &tif);
     let band = &info["bands"][0];
     assert_eq!(band["scale"], 0.1);
@@ -201,8 +174,7 @@ fn gdalinfo_sees_the_metadata() {
         .unwrap()
         .contains("4326"));
 
-    let png = scratch("gdal.png");
-    round_trip(&png);
+    let (_, png) = round_trip(dir.path(), "gdal.png");
     let info = gdalinfo(&program, &png);
     assert_eq!(
         info["geoTransform"],
@@ -220,8 +192,7 @@ fn gdalinfo_sees_the_metadata() {
     );
     assert_eq!(band["unit"], "m");
 
-    let asc = scratch("gdal.asc");
-    round_trip(&asc);
+    let (_, asc) = round_trip(dir.path(), "gdal.asc");
     let info = gdalinfo(&program, &asc);
     assert!(info["coordinateSystem"]["wkt"]
         .as_str()
