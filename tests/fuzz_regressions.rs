@@ -216,6 +216,20 @@ fn make_seeds() {
         .unwrap()
     };
     let tiny = Raster::new(5, 3, Samples::U8((0..15).map(|i| i * 17).collect())).unwrap();
+    // Version 2's metadata block: GDAL band roles, an item, a CRS as WKT.
+    let mut with_metadata = georef_small.clone();
+    with_metadata.metadata = wavemesh_codec::Metadata {
+        scale: Some(0.1),
+        offset: Some(100.0),
+        description: Some("elevation".into()),
+        unit_type: Some("m".into()),
+        crs_wkt: Some("GEOGCS[\"WGS 84\"]".into()),
+        items: vec![wavemesh_codec::MetadataItem {
+            name: "DTED_VerticalDatum".into(),
+            value: "E08".into(),
+            ..Default::default()
+        }],
+    };
     let lossless = EncodeOptions::new(Quality::Lossless, None);
     let streams: Vec<(&str, &Raster, EncodeOptions)> = vec![
         ("i16_lossless.ezw", &small, lossless.clone()),
@@ -257,6 +271,11 @@ fn make_seeds() {
             EncodeOptions::new(Quality::MaxError(40.0), None),
         ),
         ("u8_tiny_lossless.ezw", &tiny, lossless.clone()),
+        (
+            "i16_metadata_lossless.ezw",
+            &with_metadata,
+            lossless.clone(),
+        ),
     ];
     for (name, raster, options) in &streams {
         let encoded = encode(raster, options).unwrap();
@@ -266,7 +285,12 @@ fn make_seeds() {
             encoded.header.wavelet,
             encoded.header.mode
         );
-        write(&corpus.join("decode_ezw"), name, &encoded.bytes);
+        // The version-1 seeds (made before version 2) stay as they are.
+        write(
+            &corpus.join("decode_ezw"),
+            &format!("v2_{name}"),
+            &encoded.bytes,
+        );
     }
 
     // decode_prefix and roundtrip: parameter block + sample bytes.

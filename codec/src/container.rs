@@ -2,17 +2,22 @@
 //!
 //! `codec/FORMAT.md` specifies the byte layout; this module is its implementation.
 //! All integers are little-endian. The header ends with a CRC-32 of everything before it.
+//! This build writes version 2 ([`v2`]: compact, with metadata) and reads versions 1
+//! ([`v1`]) and 2; everything after the header is the same in both.
+
+mod v1;
+mod v2;
 
 use crate::error::CodecError;
 use crate::ezw::{PassRecord, MAX_PLANE};
 use crate::quantize::ValueMapping;
-use crate::raster::{Georef, SampleType};
-use crate::wavelet::Wavelet;
+use crate::raster::{Georef, Metadata, SampleType};
+use crate::wavelet::{self, Wavelet};
 
 /// First eight bytes of every `.ezw` file.
 pub const MAGIC: [u8; 8] = *b"\x89EZW\r\n\x1a\n";
-/// The container version this build writes and reads.
-pub const VERSION: u16 = 1;
+/// The container version this build writes (it also reads version 1).
+pub const VERSION: u16 = 2;
 
 /// How the stream was made, which says what its complete decode guarantees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -108,6 +113,8 @@ pub struct Header {
     pub passes: Vec<PassRecord>,
     /// Georeferencing carried through.
     pub georef: Option<Georef>,
+    /// GIS metadata carried through (version 2; empty in version-1 files).
+    pub metadata: Metadata,
 }
 
 impl Header {
@@ -116,68 +123,9 @@ impl Header {
         self.width as u64 * self.height as u64
     }
 
-    /// Serialises the header, checksum included.
+    /// Serialises the header (version 2), checksum included.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(256);
-        out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&VERSION.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes()); // header length, patched below
-        out.extend_from_slice(&self.width.to_le_bytes());
-        out.extend_from_slice(&self.height.to_le_bytes());
-        out.push(self.sample_type.code());
-        out.push(self.wavelet.code());
-        out.push(self.levels);
-        out.push(self.mode.code());
-        for v in [
-            self.mapping.offset,
-            self.mapping.step,
-            self.max_error,
-            self.coefficient_step,
-            self.valid_range.0,
-            self.valid_range.1,
-        ] {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-        out.push(self.nodata.is_some() as u8);
-        out.extend_from_slice(&self.nodata.unwrap_or(0.0).to_bits().to_le_bytes());
-        out.push(self.top_plane.map_or(0xFF, |p| p));
-        out.extend_from_slice(&(self.bands.len() as u16).to_le_bytes());
-        for &(shift, scale) in &self.bands {
-            match self.wavelet {
-                Wavelet::Int53 => out.push(shift),
-                Wavelet::Cdf97 => out.extend_from_slice(&scale_to_u16(scale).to_le_bytes()),
-            }
-        }
-        out.extend_from_slice(&self.payload_len.to_le_bytes());
-        out.push(self.payload_truncated as u8);
-        out.extend_from_slice(&self.mask_len.to_le_bytes());
-        out.extend_from_slice(&self.residual_len.to_le_bytes());
-        out.extend_from_slice(&self.correction_step.to_le_bytes());
-        out.extend_from_slice(&(framed_len(self.ladder_bytes().len()) as u32).to_le_bytes());
-        match &self.georef {
-            None => out.push(0),
-            Some(g) => {
-                out.push(1);
-                for v in g.geotransform {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                out.extend_from_slice(&(g.geo_key_directory.len() as u32).to_le_bytes());
-                for v in &g.geo_key_directory {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                out.extend_from_slice(&(g.geo_double_params.len() as u32).to_le_bytes());
-                for v in &g.geo_double_params {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-                out.extend_from_slice(&(g.geo_ascii_params.len() as u32).to_le_bytes());
-                out.extend_from_slice(g.geo_ascii_params.as_bytes());
-            }
-        }
-        let total = (out.len() + 4) as u32;
-        out[10..14].copy_from_slice(&total.to_le_bytes());
-        let crc = crc32fast::hash(&out);
-        out.extend_from_slice(&crc.to_le_bytes());
-        out
+        v2::write(self)
     }
 
     /// Parses and validates a header at the start of `data`; returns it and its length.
@@ -194,11 +142,12 @@ impl Header {
         }
         let mut r = Reader { data, pos: 8 };
         let version = r.u16()?;
-        if version != VERSION {
-            return Err(CodecError::UnsupportedVersion(version, VERSION));
-        }
-        let header_len = r.u32()? as usize;
-        if header_len < 18 || header_len > data.len() {
+        let header_len = match version {
+            1 => r.u32()? as usize,
+            2 => usize::try_from(r.varint()?).unwrap_or(usize::MAX),
+            _ => return Err(CodecError::UnsupportedVersion(version, VERSION)),
+        };
+        if header_len < r.pos + 4 || header_len > data.len() {
             return Err(if header_len > data.len() && header_len <= MAX_HEADER_LEN {
                 CodecError::TruncatedHeader("file ends inside the header")
             } else {
@@ -220,132 +169,17 @@ impl Header {
             data: &data[..header_len - 4],
             pos: r.pos,
         };
-        let width = r.u32()?;
-        let height = r.u32()?;
-        if width == 0 || height == 0 {
-            return Err(CodecError::Dimensions {
-                width: width as u64,
-                height: height as u64,
-            });
-        }
-        let sample_type = SampleType::from_code(r.u8()?)
-            .ok_or_else(|| CodecError::InvalidHeader("unknown sample type".into()))?;
-        let wavelet = Wavelet::from_code(r.u8()?)
-            .ok_or_else(|| CodecError::InvalidHeader("unknown wavelet".into()))?;
-        let levels = r.u8()?;
-        if levels as u32 > crate::wavelet::max_levels(width as usize, height as usize) {
-            return Err(CodecError::InvalidHeader(format!(
-                "{levels} levels for {width}x{height}"
-            )));
-        }
-        let mode = Mode::from_code(r.u8()?)
-            .ok_or_else(|| CodecError::InvalidHeader("unknown mode".into()))?;
-        let offset = r.f64()?;
-        let step = r.f64()?;
-        let max_error = r.f64()?;
-        let coefficient_step = r.f64()?;
-        let valid_range = (r.f64()?, r.f64()?);
-        if !(offset.is_finite()
-            && step.is_finite()
-            && step > 0.0
-            && coefficient_step.is_finite()
-            && coefficient_step > 0.0)
-        {
-            return Err(CodecError::InvalidHeader("quantisation parameters".into()));
-        }
-        let has_nodata = r.u8()? != 0;
-        let nodata_bits = r.u64()?;
-        let nodata = has_nodata.then(|| f64::from_bits(nodata_bits));
-        let top_plane = match r.u8()? {
-            0xFF => None,
-            p if p as u32 <= MAX_PLANE => Some(p),
-            p => return Err(CodecError::InvalidHeader(format!("top plane {p}"))),
-        };
-        let band_count = r.u16()? as usize;
-        let expected_bands = if levels == 0 {
-            1
-        } else {
-            3 * levels as usize + 1
-        };
-        if band_count != expected_bands {
-            return Err(CodecError::InvalidHeader(format!(
-                "{band_count} subbands for {levels} levels"
-            )));
-        }
-        let mut bands = Vec::with_capacity(band_count);
-        for _ in 0..band_count {
-            let (shift, scale) = match wavelet {
-                Wavelet::Int53 => (r.u8()?, 1.0),
-                Wavelet::Cdf97 => (0, scale_from_u16(r.u16()?)),
-            };
-            if shift as u32 > MAX_PLANE || !(scale.is_finite() && scale > 0.0) {
-                return Err(CodecError::InvalidHeader("subband shift or scale".into()));
-            }
-            bands.push((shift, scale));
-        }
-        let payload_len = r.u64()?;
-        let payload_truncated = match r.u8()? {
-            0 => false,
-            1 => true,
-            _ => return Err(CodecError::InvalidHeader("payload flag".into())),
-        };
-        let mask_len = r.u32()?;
-        let residual_len = r.u32()?;
-        let correction_step = r.f64()?;
-        if !(correction_step.is_finite() && correction_step >= 0.0) {
-            return Err(CodecError::InvalidHeader("correction step".into()));
-        }
-        let ladder_len = r.u32()? as usize;
-        let georef = match r.u8()? {
-            0 => None,
-            1 => {
-                let mut geotransform = [0.0; 6];
-                for v in &mut geotransform {
-                    *v = r.f64()?;
-                }
-                let n = r.count(2)?;
-                let geo_key_directory = (0..n).map(|_| r.u16()).collect::<Result<_, _>>()?;
-                let n = r.count(8)?;
-                let geo_double_params = (0..n).map(|_| r.f64()).collect::<Result<_, _>>()?;
-                let n = r.count(1)?;
-                let geo_ascii_params = String::from_utf8_lossy(r.bytes(n)?).into_owned();
-                Some(Georef {
-                    geotransform,
-                    geo_key_directory,
-                    geo_double_params,
-                    geo_ascii_params,
-                })
-            }
-            _ => return Err(CodecError::InvalidHeader("georeferencing flag".into())),
+        let mut header = match version {
+            1 => v1::parse_fields(&mut r)?,
+            _ => v2::parse_fields(&mut r)?,
         };
         if r.pos != r.data.len() {
             return Err(CodecError::InvalidHeader(
                 "trailing bytes in the header".into(),
             ));
         }
-        let mut header = Header {
-            width,
-            height,
-            sample_type,
-            wavelet,
-            levels,
-            mode,
-            mapping: ValueMapping { offset, step },
-            max_error,
-            coefficient_step,
-            nodata,
-            valid_range,
-            top_plane,
-            bands,
-            payload_len,
-            payload_truncated,
-            mask_len,
-            residual_len,
-            correction_step,
-            ladder_len: ladder_len as u32,
-            passes: Vec::new(),
-            georef,
-        };
+        header.validate()?;
+        let ladder_len = header.ladder_len as usize;
         let mut file_len = header_len as u64;
         for (what, len) in [
             ("nodata mask", header.mask_len as u64),
@@ -381,6 +215,46 @@ impl Header {
         Ok((header, header_len))
     }
 
+    /// Checks the fields whose values no stream can have (a forged checksum).
+    fn validate(&self) -> Result<(), CodecError> {
+        if self.width == 0 || self.height == 0 {
+            return Err(CodecError::Dimensions {
+                width: self.width as u64,
+                height: self.height as u64,
+            });
+        }
+        let ValueMapping { offset, step } = self.mapping;
+        if !(offset.is_finite()
+            && step.is_finite()
+            && step > 0.0
+            && self.coefficient_step.is_finite()
+            && self.coefficient_step > 0.0)
+        {
+            return Err(CodecError::InvalidHeader("quantisation parameters".into()));
+        }
+        if let Some(p) = self.top_plane.filter(|&p| p as u32 > MAX_PLANE) {
+            return Err(CodecError::InvalidHeader(format!("top plane {p}")));
+        }
+        if !(self.correction_step.is_finite() && self.correction_step >= 0.0) {
+            return Err(CodecError::InvalidHeader("correction step".into()));
+        }
+        Ok(())
+    }
+
+    /// The header length a file's version and length field claim (unchecked), `None` if
+    /// `data` does not start with the magic bytes and a readable length field.
+    pub fn declared_len(data: &[u8]) -> Option<usize> {
+        if data.get(..MAGIC.len())? != MAGIC {
+            return None;
+        }
+        let mut r = Reader { data, pos: 8 };
+        match r.u16().ok()? {
+            1 => r.u32().ok().map(|n| n as usize),
+            2 => r.varint().ok().and_then(|n| usize::try_from(n).ok()),
+            _ => None,
+        }
+    }
+
     /// The rate–distortion ladder section that trails the file.
     pub fn ladder_bytes(&self) -> Vec<u8> {
         let mut out = vec![self.passes.len() as u8];
@@ -392,6 +266,84 @@ impl Header {
         }
         out
     }
+}
+
+/// `georef` as a version-2 file carries it: a CRS its EPSG code says completely is reduced
+/// to the code's three GeoKeys (model type, raster type, code), dropping the keys that
+/// only restate it (citations, degree or metre units, the WGS 84 ellipsoid of EPSG:4326);
+/// any other georeferencing is kept as it is.
+pub fn stored_georef(georef: &Georef) -> Georef {
+    v2::stored_georef(georef)
+}
+
+/// Largest side for which a decoder derives the subband shifts and scales from the
+/// dimensions instead of reading them (deriving costs O(bands · side)).
+const MAX_DERIVED_SIDE: u32 = 1 << 16;
+
+/// The subband shifts (5/3) or scales (9/7) the encoder gives a `width × height` raster
+/// with `levels` levels, computed from the transform's synthesis norms; `None` above
+/// [`MAX_DERIVED_SIDE`].
+fn derived_bands(wavelet: Wavelet, width: u32, height: u32, levels: u8) -> Option<Vec<(u8, f64)>> {
+    if width.max(height) > MAX_DERIVED_SIDE
+        || u32::from(levels) > wavelet::max_levels(width as usize, height as usize)
+    {
+        return None;
+    }
+    let norms = wavelet::coding_norms(wavelet, width as usize, height as usize, levels.into());
+    Some(match wavelet {
+        Wavelet::Int53 => wavelet::plane_shifts(&norms)
+            .into_iter()
+            .map(|shift| (shift.min(u8::MAX.into()) as u8, 1.0))
+            .collect(),
+        Wavelet::Cdf97 => norms
+            .into_iter()
+            .map(|n| (0, scale_from_u16(scale_to_u16(n))))
+            .collect(),
+    })
+}
+
+/// Reads the four one-byte codes: sample type, wavelet, levels, mode.
+fn read_kinds(r: &mut Reader) -> Result<(SampleType, Wavelet, u8, Mode), CodecError> {
+    let sample_type = SampleType::from_code(r.u8()?)
+        .ok_or_else(|| CodecError::InvalidHeader("unknown sample type".into()))?;
+    let wavelet = Wavelet::from_code(r.u8()?)
+        .ok_or_else(|| CodecError::InvalidHeader("unknown wavelet".into()))?;
+    let levels = r.u8()?;
+    let mode =
+        Mode::from_code(r.u8()?).ok_or_else(|| CodecError::InvalidHeader("unknown mode".into()))?;
+    Ok((sample_type, wavelet, levels, mode))
+}
+
+/// Refuses more levels than the raster allows.
+fn check_levels(width: u32, height: u32, levels: u8) -> Result<(), CodecError> {
+    if levels as u32 > wavelet::max_levels(width as usize, height as usize) {
+        return Err(CodecError::InvalidHeader(format!(
+            "{levels} levels for {width}x{height}"
+        )));
+    }
+    Ok(())
+}
+
+/// Reads the listed subband shifts (5/3, one u8 each) or scales (9/7, one u16 each in
+/// 1/8192 units), `3 · levels + 1` of them (1 when `levels` is 0).
+fn read_bands(r: &mut Reader, wavelet: Wavelet, levels: u8) -> Result<Vec<(u8, f64)>, CodecError> {
+    let count = if levels == 0 {
+        1
+    } else {
+        3 * levels as usize + 1
+    };
+    let mut bands = Vec::with_capacity(count);
+    for _ in 0..count {
+        let (shift, scale) = match wavelet {
+            Wavelet::Int53 => (r.u8()?, 1.0),
+            Wavelet::Cdf97 => (0, scale_from_u16(r.u16()?)),
+        };
+        if shift as u32 > MAX_PLANE || !(scale.is_finite() && scale > 0.0) {
+            return Err(CodecError::InvalidHeader("subband shift or scale".into()));
+        }
+        bands.push((shift, scale));
+    }
+    Ok(bands)
 }
 
 /// Bytes of section data per checksummed chunk. Every section after the header (mask,
@@ -533,7 +485,14 @@ pub fn assemble(
 
 /// Size of the file [`assemble`] makes from sections of these logical sizes.
 pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usize) -> usize {
-    header.to_bytes().len()
+    // The header's size depends on the section lengths (varints).
+    let sized = Header {
+        mask_len: framed_len(mask) as u32,
+        payload_len: framed_len(payload) as u64,
+        residual_len: framed_len(residual) as u32,
+        ..header.clone()
+    };
+    sized.to_bytes().len()
         + framed_len(mask)
         + framed_len(payload)
         + framed_len(residual)
@@ -820,6 +779,19 @@ mod tests {
                 geo_double_params: vec![6378137.0],
                 geo_ascii_params: "WGS 84|".into(),
             }),
+            metadata: Metadata {
+                scale: Some(0.1),
+                offset: Some(-100.0),
+                description: Some("elevation".into()),
+                unit_type: Some("m".into()),
+                crs_wkt: None,
+                items: vec![crate::raster::MetadataItem {
+                    name: "DTED_VerticalDatum".into(),
+                    value: "E08".into(),
+                    domain: String::new(),
+                    band: false,
+                }],
+            },
         }
     }
 
@@ -886,6 +858,98 @@ mod tests {
         }
     }
 
+    /// EPSG:4326 as GDAL writes it: the code plus keys that only restate it.
+    fn gdal_epsg4326() -> Georef {
+        Georef {
+            geotransform: [-84.41375, 1.0 / 1200.0, 0.0, 36.7329, 0.0, -1.0 / 1200.0],
+            geo_key_directory: vec![
+                1, 1, 0, 7, 1024, 0, 1, 2, 1025, 0, 1, 1, 2048, 0, 1, 4326, 2049, 34737, 7, 0,
+                2054, 0, 1, 9102, 2057, 34736, 1, 1, 2059, 34736, 1, 0,
+            ],
+            geo_double_params: vec![298.257223563, 6378137.0],
+            geo_ascii_params: "WGS 84|".into(),
+        }
+    }
+
+    #[test]
+    fn an_epsg_coded_crs_is_stored_as_its_code() {
+        let mut h = sample_header();
+        h.georef = Some(gdal_epsg4326());
+        let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+        let georef = parsed.georef.unwrap();
+        assert_eq!(georef.geotransform, gdal_epsg4326().geotransform);
+        assert_eq!(
+            georef.geo_key_directory,
+            [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 1, 2048, 0, 1, 4326]
+        );
+        assert!(georef.geo_double_params.is_empty() && georef.geo_ascii_params.is_empty());
+        // UTM zone 32N as GDAL writes it.
+        let utm = Georef {
+            geotransform: [618181.9, 90.0, 0.0, 6432695.2, 0.0, -90.0],
+            geo_key_directory: vec![
+                1, 1, 0, 7, 1024, 0, 1, 1, 1025, 0, 1, 1, 1026, 34737, 22, 0, 2049, 34737, 7, 22,
+                2054, 0, 1, 9102, 3072, 0, 1, 32632, 3076, 0, 1, 9001,
+            ],
+            geo_double_params: vec![],
+            geo_ascii_params: "WGS 84 / UTM zone 32N|WGS 84|".into(),
+        };
+        assert_eq!(
+            stored_georef(&utm).geo_key_directory,
+            [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32632]
+        );
+        h.georef = Some(utm.clone());
+        let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+        assert_eq!(parsed.georef, Some(stored_georef(&utm)));
+        // A key the code does not imply (a vertical datum) keeps the full form.
+        let mut vertical = gdal_epsg4326();
+        vertical.geo_key_directory[3] += 1;
+        vertical.geo_key_directory.extend([4096, 0, 1, 5773]);
+        vertical.geotransform[2] = 0.5;
+        h.georef = Some(vertical.clone());
+        let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+        assert_eq!(parsed.georef, Some(vertical));
+    }
+
+    #[test]
+    fn v2_numbers_keep_every_bit() {
+        let mut h = sample_header();
+        for v in [
+            0.0,
+            -0.0,
+            1.5,
+            -7.0,
+            1e300,
+            0.1,
+            f64::NAN,
+            f64::INFINITY,
+            -f64::INFINITY,
+        ] {
+            h.nodata = Some(v);
+            h.valid_range = (v, 3.0);
+            let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+            assert_eq!(parsed.nodata.map(f64::to_bits), Some(v.to_bits()), "{v}");
+            assert_eq!(parsed.valid_range.0.to_bits(), v.to_bits(), "{v}");
+        }
+    }
+
+    #[test]
+    fn every_truncation_and_bit_flip_of_a_compact_header_is_an_error() {
+        let mut h = sample_header();
+        h.georef = Some(gdal_epsg4326());
+        h.metadata.crs_wkt = Some("GEOGCS[\"WGS 84\"]".into());
+        let bytes = h.to_bytes();
+        for cut in 0..bytes.len() {
+            assert!(Header::parse(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        for i in 0..bytes.len() {
+            for bit in 0..8 {
+                let mut damaged = bytes.clone();
+                damaged[i] ^= 1 << bit;
+                assert!(Header::parse(&damaged).is_err(), "flip at {i}.{bit}");
+            }
+        }
+    }
+
     #[test]
     fn wrong_magic_and_version() {
         assert!(matches!(
@@ -896,7 +960,7 @@ mod tests {
         bytes[8] = 9;
         assert!(matches!(
             Header::parse(&bytes),
-            Err(CodecError::UnsupportedVersion(9, 1))
+            Err(CodecError::UnsupportedVersion(9, 2))
         ));
     }
 }

@@ -12,7 +12,7 @@
 //! | [`decode_prefixes`] | `decode_prefix` | parameter bytes + a small raster (≤ 24 × 24) |
 //! | [`roundtrip`] | `roundtrip` | parameter bytes + a raster (≤ 64 × 64) |
 
-use crate::container::{self, Header, Mode, CHUNK, MAGIC};
+use crate::container::{self, Header, Mode, CHUNK};
 use crate::pipeline::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Limits, Quality};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::wavelet::{self, Wavelet};
@@ -118,11 +118,8 @@ fn check_decode(data: &[u8], options: &DecodeOptions) -> Option<Decoded> {
 /// mask, payload, residual and ladder lengths from the header); chunks cut short by the
 /// end of the data are left alone.
 pub fn repair_checksums(data: &[u8]) -> Option<Vec<u8>> {
-    if data.len() < 14 || data[..8] != MAGIC {
-        return None;
-    }
-    let header_len = u32::from_le_bytes(data[10..14].try_into().ok()?) as usize;
-    if header_len < 18 || header_len > data.len() {
+    let header_len = Header::declared_len(data)?;
+    if header_len < 14 || header_len > data.len() {
         return None;
     }
     let mut out = data.to_vec();

@@ -268,11 +268,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
     let has_voids = mask.iter().any(|&m| !m);
     let valid_range = quantize::valid_range(raster, &mask).unwrap_or((0.0, 0.0));
     let subbands = wavelet::subbands(width, height, levels);
-    // Empty subbands have no norm to speak of: give them 1 so shifts and scales stay sane.
-    let norms: Vec<f64> = wavelet::synthesis_norms(options.wavelet, width, height, levels)
-        .into_iter()
-        .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
-        .collect();
+    let norms = wavelet::coding_norms(options.wavelet, width, height, levels);
 
     if let Samples::F32(values) = &raster.samples {
         quantize::check_finite(values, &mask, width)?;
@@ -347,6 +343,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
         ladder_len: 0,
         passes: Vec::new(),
         georef: raster.georef.clone(),
+        metadata: raster.metadata.clone(),
     };
     // With a budget, the payload may use what the smallest possible header leaves.
     let budget = options.budget_bytes.map(|b| b as usize);
@@ -429,10 +426,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
 pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
     let (width, height) = (raster.width, raster.height);
     let levels = wavelet::default_levels(width, height);
-    let norms: Vec<f64> = wavelet::synthesis_norms(Wavelet::Int53, width, height, levels)
-        .into_iter()
-        .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
-        .collect();
+    let norms = wavelet::coding_norms(Wavelet::Int53, width, height, levels);
     let mask = raster.valid_mask();
     let prepared = prepare_53(raster, &mask, Quality::Lossless, &norms)?;
     let subbands = wavelet::subbands(width, height, levels);
@@ -559,11 +553,7 @@ fn prepare_53(
     let levels = level_count(norms.len());
     wavelet::forward_53(&mut values, width, height, levels);
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
-    let smallest = norms.iter().cloned().fold(f64::INFINITY, f64::min);
-    let shifts: Vec<u32> = norms
-        .iter()
-        .map(|&n| (n / smallest).log2().round().max(0.0) as u32)
-        .collect();
+    let shifts = wavelet::plane_shifts(norms);
     let step2 = mapping.step * mapping.step;
     Ok(Prepared {
         coefficients: values,
@@ -587,6 +577,12 @@ fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
         .map(|i| raster.samples.get_f64(i))
         .sum::<f64>()
         / valid as f64;
+    // Any offset works: a whole number (integers) or an f32 (floats) is shorter to store.
+    let mean = if raster.sample_type().is_integer() {
+        mean.round()
+    } else {
+        f64::from(mean as f32)
+    };
     let mut centred: Vec<f64> = (0..raster.len())
         .map(|i| {
             if mask[i] {
@@ -620,7 +616,14 @@ fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
         }
     }
     let step = if largest > 0.0 {
-        largest / (1u64 << MAX_COEFFICIENT_PLANE) as f64 * 1.0001
+        // Rounded up to an f32, which the header stores in 4 bytes instead of 8.
+        let step = largest / (1u64 << MAX_COEFFICIENT_PLANE) as f64 * 1.0001;
+        let rounded = f64::from(step as f32);
+        if rounded >= step {
+            rounded
+        } else {
+            f64::from(f32::from_bits((step as f32).to_bits() + 1))
+        }
     } else {
         1.0
     };
@@ -1030,6 +1033,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
     let mut raster = Raster::new(width, height, samples)?;
     raster.nodata = header.nodata;
     raster.georef = header.georef.clone();
+    raster.metadata = header.metadata.clone();
     let bytes_used = (if residuals_complete && header.residual_len > 0 {
         ladder_start
     } else {

@@ -1,8 +1,8 @@
 //! The in-memory elevation raster the codec encodes and decodes.
 //!
 //! A [`Raster`] is a single-band grid of typed samples in row-major order (row 0 first),
-//! with an optional nodata value and optional georeferencing that the container carries
-//! through untouched.
+//! with an optional nodata value, optional georeferencing and GIS metadata (GDAL scale,
+//! offset, band description, units, free items) that the container carries through.
 
 use crate::error::CodecError;
 
@@ -184,6 +184,46 @@ pub struct Georef {
     pub geo_ascii_params: String,
 }
 
+/// One free metadata item, as GDAL keeps them in a GeoTIFF's `GDAL_METADATA` tag
+/// (e.g. Copernicus DTED's `DTED_VerticalDatum = E08`).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct MetadataItem {
+    /// The item's name.
+    pub name: String,
+    /// Its value, as text.
+    pub value: String,
+    /// GDAL metadata domain (empty: the default domain).
+    pub domain: String,
+    /// Whether the item belongs to the band (GDAL `sample="0"`) rather than the dataset.
+    pub band: bool,
+}
+
+/// What the samples mean, beyond their values: GIS metadata carried from the source to
+/// the decoded output. Every field is optional; [`Metadata::is_empty`] when none is set.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Metadata {
+    /// GDAL band scale: a value in units is `sample · scale + offset`.
+    pub scale: Option<f64>,
+    /// GDAL band offset (see `scale`).
+    pub offset: Option<f64>,
+    /// GDAL band description (its name, e.g. `elevation`).
+    pub description: Option<String>,
+    /// GDAL band unit type (e.g. `m`, `ft`).
+    pub unit_type: Option<String>,
+    /// The CRS as WKT text, when the source gave it as text (an `.asc` file's `.prj`)
+    /// rather than as GeoTIFF keys.
+    pub crs_wkt: Option<String>,
+    /// Free items, in the source's order.
+    pub items: Vec<MetadataItem>,
+}
+
+impl Metadata {
+    /// Whether no field is set.
+    pub fn is_empty(&self) -> bool {
+        *self == Metadata::default()
+    }
+}
+
 /// A single-band elevation grid.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Raster {
@@ -197,6 +237,8 @@ pub struct Raster {
     pub nodata: Option<f64>,
     /// Optional georeferencing.
     pub georef: Option<Georef>,
+    /// GIS metadata (empty when the source had none).
+    pub metadata: Metadata,
 }
 
 impl Raster {
@@ -218,6 +260,7 @@ impl Raster {
             samples,
             nodata: None,
             georef: None,
+            metadata: Metadata::default(),
         })
     }
 

@@ -271,6 +271,25 @@ pub fn synthesis_norms(wavelet: Wavelet, width: usize, height: usize, levels: u3
         .collect()
 }
 
+/// The norms the coder weighs subbands by: [`synthesis_norms`], with empty subbands (which
+/// have no norm to speak of) given 1 so shifts and scales stay sane.
+pub fn coding_norms(wavelet: Wavelet, width: usize, height: usize, levels: u32) -> Vec<f64> {
+    synthesis_norms(wavelet, width, height, levels)
+        .into_iter()
+        .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
+        .collect()
+}
+
+/// The 5/3 coder's per-subband plane shifts: each norm relative to the smallest, in whole
+/// bit-planes (`round(log2(norm / smallest))`).
+pub fn plane_shifts(norms: &[f64]) -> Vec<u32> {
+    let smallest = norms.iter().cloned().fold(f64::INFINITY, f64::min);
+    norms
+        .iter()
+        .map(|&n| (n / smallest).log2().round().max(0.0) as u32)
+        .collect()
+}
+
 /// L2 norm of the 1-D signal of length `n` synthesised from a unit coefficient at `pos` of
 /// a `levels`-level 1-D pyramid.
 fn unit_norm_1d(kernel: &Linear, n: usize, levels: u32, pos: usize) -> f64 {

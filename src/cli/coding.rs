@@ -11,6 +11,7 @@ use wavemesh_codec::{
 };
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
+use super::metadata_report::MetadataReport;
 use super::{
     print_json, timed, with_codec_progress, CliError, InputArgs, LimitArgs, WaveletArg, Workload,
 };
@@ -501,6 +502,7 @@ struct InfoReport<'a> {
     truncated: bool,
     georeferenced: bool,
     geotransform: Option<[f64; 6]>,
+    metadata: MetadataReport,
     passes: Vec<PassReport>,
 }
 
@@ -545,7 +547,7 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         command: "info",
         input: &args.input,
         file_bytes: data.len() as u64,
-        format_version: wavemesh_codec::container::VERSION,
+        format_version: u16::from_le_bytes([data[8], data[9]]),
         width: header.width,
         height: header.height,
         sample_type: header.sample_type.name(),
@@ -569,6 +571,7 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         payload_start,
         georeferenced: header.georef.is_some(),
         geotransform: header.georef.as_ref().map(|g| g.geotransform),
+        metadata: MetadataReport::new(&header.metadata),
         passes,
     };
     if args.json {
@@ -624,6 +627,9 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
             ""
         }
     );
+    for line in report.metadata.lines() {
+        println!("{line}");
+    }
     println!(
         "  {:>5} {:>12} {:>9} {:>12} {:>9}",
         "plane", "end byte", "bpp", "est. RMSE", "est. PSNR"

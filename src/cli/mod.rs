@@ -3,6 +3,7 @@
 mod coding;
 mod demo;
 mod mesh;
+mod metadata_report;
 mod report;
 mod synth;
 mod verify;

@@ -6,14 +6,15 @@
 //!
 //! A grid whose values are all integers fitting `i32` (and whose nodata value is an
 //! integer in that range) is read as I32, anything else as F32. The header becomes a
-//! north-up geotransform without GeoKeys; writing drops GeoKeys (the format has none).
+//! north-up geotransform. The CRS lives in a `.prj` beside the grid (WKT): read when
+//! present (its EPSG authority, if any, becomes GeoKeys) and written when the CRS is known.
 
 use std::io::{self, BufRead, Write};
 use std::path::Path;
 
 use wavemesh_codec::{Georef, Raster, SampleType, Samples};
 
-use super::{checked_sample_count, make_raster, read_error, DemError, ReadOptions};
+use super::{checked_sample_count, make_raster, read_error, side_files, DemError, ReadOptions};
 
 /// The header keywords, lower-case.
 const KEYS: [&str; 10] = [
@@ -265,6 +266,12 @@ pub(super) fn read<R: BufRead>(
         geotransform,
         ..Georef::default()
     });
+    if let Some(wkt) = side_files::read_prj(path)? {
+        if let Some(georef) = &mut raster.georef {
+            georef.geo_key_directory = side_files::keys_from_wkt(&wkt);
+        }
+        raster.metadata.crs_wkt = Some(wkt);
+    }
     Ok(raster)
 }
 

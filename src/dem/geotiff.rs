@@ -4,10 +4,11 @@
 //! `tiff` crate decodes (none, LZW, Deflate, PackBits). Georeferencing is kept:
 //! ModelPixelScale + ModelTiepoint or ModelTransformation become a GDAL geotransform
 //! (shifted by half a pixel for `PixelIsPoint` rasters, as GDAL does), the three GeoKey
-//! tags are carried raw, and GDAL_NODATA becomes the nodata value.
+//! tags are carried raw, GDAL_NODATA becomes the nodata value, and GDAL_METADATA (tag
+//! 42112: scale, offset, description, units, items) the raster's metadata.
 //!
 //! Writes the same five sample types, Deflate-compressed (with the horizontal predictor
-//! for integers), with the georeferencing and nodata tags.
+//! for integers), with the georeferencing, nodata and GDAL_METADATA tags.
 
 use std::io::{Cursor, Read, Seek};
 use std::path::Path;
@@ -17,9 +18,9 @@ use tiff::encoder::colortype::{self, ColorType};
 use tiff::encoder::{Compression, DeflateLevel, DirectoryEncoder, TiffEncoder, TiffKindStandard};
 use tiff::tags::{Predictor, Tag};
 use tiff::TiffError;
-use wavemesh_codec::{Georef, Raster, SampleType, Samples};
+use wavemesh_codec::{Georef, Metadata, Raster, SampleType, Samples};
 
-use super::{checked_sample_count, make_raster, read_error, DemError, ReadOptions};
+use super::{checked_sample_count, gdal_metadata, make_raster, read_error, DemError, ReadOptions};
 
 /// GeoKey `GTRasterTypeGeoKey`.
 const RASTER_TYPE_KEY: u16 = 1025;
@@ -61,6 +62,7 @@ pub(super) fn read<R: Read + Seek>(
 
     let georef = read_georef(&mut decoder, path)?;
     let nodata = read_nodata(&mut decoder, path)?;
+    let metadata = read_metadata(&mut decoder, path)?;
     let samples = match (sample_type, decoder.read_image().map_err(err)?) {
         (SampleType::U8, DecodingResult::U8(v)) => Samples::U8(v),
         (SampleType::U16, DecodingResult::U16(v)) => Samples::U16(v),
@@ -77,7 +79,23 @@ pub(super) fn read<R: Read + Seek>(
     let mut raster = make_raster(width as usize, height as usize, samples)?;
     raster.nodata = nodata;
     raster.georef = georef;
+    raster.metadata = metadata;
     Ok(raster)
+}
+
+/// Reads the GDAL_METADATA tag (42112): scale, offset, description, units and items.
+fn read_metadata<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    path: &Path,
+) -> Result<Metadata, DemError> {
+    let tag = Tag::Unknown(gdal_metadata::GDAL_METADATA_TAG);
+    let Some(value) = decoder.find_tag(tag).map_err(|e| tiff_error(path, e))? else {
+        return Ok(Metadata::default());
+    };
+    let xml = value
+        .into_string()
+        .map_err(|_| DemError::Malformed("GDAL_METADATA tag must hold ASCII text".into()))?;
+    gdal_metadata::parse(&xml)
 }
 
 /// TIFF `Compression` values whose decoded samples differ from what was written.
@@ -353,6 +371,8 @@ struct GeoTags {
     doubles: Vec<f64>,
     ascii: String,
     nodata: Option<String>,
+    /// GDAL_METADATA XML, when the raster has metadata.
+    metadata: Option<String>,
 }
 
 impl GeoTags {
@@ -360,6 +380,7 @@ impl GeoTags {
         let nodata = raster
             .nodata
             .map(|v| format_nodata(v, raster.sample_type()));
+        let metadata = gdal_metadata::to_tiff_xml(&raster.metadata);
         let Some(georef) = &raster.georef else {
             return Ok(GeoTags {
                 scale_tiepoint: None,
@@ -368,6 +389,7 @@ impl GeoTags {
                 doubles: Vec::new(),
                 ascii: String::new(),
                 nodata,
+                metadata,
             });
         };
         if !georef.geo_ascii_params.is_ascii() || georef.geo_ascii_params.contains('\0') {
@@ -403,6 +425,7 @@ impl GeoTags {
             doubles: georef.geo_double_params.clone(),
             ascii: georef.geo_ascii_params.clone(),
             nodata,
+            metadata,
         })
     }
 
@@ -428,6 +451,10 @@ impl GeoTags {
         }
         if let Some(nodata) = &self.nodata {
             dir.write_tag(Tag::GdalNodata, nodata.as_str())?;
+        }
+        if let Some(xml) = &self.metadata {
+            let tag = Tag::Unknown(gdal_metadata::GDAL_METADATA_TAG);
+            dir.write_tag(tag, xml.as_str())?;
         }
         Ok(())
     }
@@ -475,6 +502,24 @@ mod tests {
         assert_eq!(back.height, raster.height);
         assert_eq!(back.sample_type(), raster.sample_type());
         back
+    }
+
+    #[test]
+    fn gdal_metadata_round_trips_including_non_ascii_text() {
+        let mut r = Raster::new(3, 2, Samples::I16(vec![1, 2, 3, 4, 5, 6])).unwrap();
+        r.metadata = Metadata {
+            scale: Some(0.25),
+            offset: Some(-3.5),
+            description: Some("Höhe über NN".into()),
+            unit_type: Some("m".into()),
+            crs_wkt: None,
+            items: vec![wavemesh_codec::MetadataItem {
+                name: "DTED_VerticalDatum".into(),
+                value: "E08".into(),
+                ..Default::default()
+            }],
+        };
+        assert_eq!(round_trip(&r).metadata, r.metadata);
     }
 
     fn epsg4326() -> Georef {

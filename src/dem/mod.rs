@@ -9,9 +9,11 @@
 //! extension and always written atomically (see [`crate::atomic::write_atomic`]).
 
 mod asc;
+mod gdal_metadata;
 mod geotiff;
 mod hgt;
 mod png;
+mod side_files;
 mod terrain_rgb;
 
 use std::fs::File;
@@ -317,11 +319,13 @@ fn write_by_extension(path: &Path, raster: &Raster) -> Result<(), DemError> {
         }
         "png" => {
             let bytes = png::encode(raster)?;
-            write_atomic(path, |w| w.write_all(&bytes)).map_err(io_error)
+            write_atomic(path, |w| w.write_all(&bytes)).map_err(io_error)?;
+            side_files::write_png_side_files(path, raster)
         }
         "asc" => {
             asc::check_writable(raster)?;
-            write_atomic(path, |w| asc::write(raster, w)).map_err(io_error)
+            write_atomic(path, |w| asc::write(raster, w)).map_err(io_error)?;
+            side_files::write_prj(path, raster)
         }
         other => Err(DemError::Unsupported(format!(
             "cannot write '.{other}' files; expected a .tif, .tiff, .png or .asc extension"

@@ -1,6 +1,7 @@
 //! Grayscale PNG DEMs: 8-bit (u8) and 16-bit (u16) grayscale, plus 8-bit palette PNGs
 //! whose palette is pure grey (read as u8 grey levels). Writing produces 8- or 16-bit
-//! grayscale; PNG holds neither nodata nor georeferencing, so both are dropped.
+//! grayscale; PNG holds neither nodata nor georeferencing, so writing puts them in side
+//! files GDAL reads (see `side_files`: a `.pgw` world file and a `.png.aux.xml`).
 
 use std::io::{BufRead, Seek};
 use std::path::Path;

@@ -1,0 +1,619 @@
+//! The version-2 header: compact (varints, presence flags, short numbers), with an
+//! EPSG-coded form of the georeferencing and an optional metadata block.
+//! `codec/FORMAT.md` gives the byte layout.
+
+use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader};
+use crate::error::CodecError;
+use crate::raster::{Georef, Metadata, MetadataItem};
+use crate::wavelet::Wavelet;
+use crate::Mode;
+
+/// Header flag bits (the `flags` varint).
+mod flag {
+    pub const NODATA: u64 = 1;
+    pub const GEOREF: u64 = 1 << 1;
+    pub const METADATA: u64 = 1 << 2;
+    pub const PAYLOAD_TRUNCATED: u64 = 1 << 3;
+    pub const BANDS_LISTED: u64 = 1 << 4;
+    pub const MASK: u64 = 1 << 5;
+    pub const RESIDUAL: u64 = 1 << 6;
+    pub const MAX_ERROR: u64 = 1 << 7;
+    pub const TILED: u64 = 1 << 8;
+    pub const ALL: u64 = (1 << 9) - 1;
+}
+
+/// Georeferencing flag bits.
+const NORTH_UP: u8 = 1;
+const EPSG_CODED: u8 = 1 << 1;
+const SQUARE_PIXELS: u8 = 1 << 2;
+
+/// Metadata entry roles.
+mod role {
+    pub const SCALE: u8 = 1;
+    pub const OFFSET: u8 = 2;
+    pub const DESCRIPTION: u8 = 3;
+    pub const UNIT_TYPE: u8 = 4;
+    pub const CRS_WKT: u8 = 5;
+    pub const DATASET_ITEM: u8 = 6;
+    pub const BAND_ITEM: u8 = 7;
+}
+
+/// GeoKeys of an EPSG-coded CRS.
+const MODEL_TYPE_KEY: u16 = 1024;
+const RASTER_TYPE_KEY: u16 = 1025;
+const GEOGRAPHIC_TYPE_KEY: u16 = 2048;
+const PROJECTED_TYPE_KEY: u16 = 3072;
+const MODEL_PROJECTED: u16 = 1;
+const MODEL_GEOGRAPHIC: u16 = 2;
+
+/// Serialises `header` (checksum included) in the version-2 layout.
+pub(super) fn write(header: &Header) -> Vec<u8> {
+    let mut body = Vec::with_capacity(128);
+    write_varint(&mut body, flags(header));
+    write_varint(&mut body, header.width.into());
+    write_varint(&mut body, header.height.into());
+    body.extend_from_slice(&[
+        header.sample_type.code() | header.wavelet.code() << 3 | header.mode.code() << 5,
+        header.levels,
+    ]);
+    write_number(&mut body, header.mapping.offset);
+    // The sample step means something to 5/3 streams only, the coefficient step to 9/7.
+    write_number(
+        &mut body,
+        match header.wavelet {
+            Wavelet::Int53 => header.mapping.step,
+            Wavelet::Cdf97 => header.coefficient_step,
+        },
+    );
+    if max_error_listed(header) {
+        write_number(&mut body, header.max_error);
+    }
+    write_number(&mut body, header.valid_range.0);
+    write_number(&mut body, header.valid_range.1);
+    if let Some(nodata) = header.nodata {
+        write_number(&mut body, nodata);
+    }
+    body.push(header.top_plane.map_or(0xFF, |p| p));
+    if bands_listed(header) {
+        for &(shift, scale) in &header.bands {
+            match header.wavelet {
+                Wavelet::Int53 => body.push(shift),
+                Wavelet::Cdf97 => body.extend_from_slice(&scale_to_u16(scale).to_le_bytes()),
+            }
+        }
+    }
+    write_varint(&mut body, header.payload_len);
+    if header.mask_len > 0 {
+        write_varint(&mut body, header.mask_len.into());
+    }
+    if has_residual(header) {
+        write_varint(&mut body, header.residual_len.into());
+        write_number(&mut body, header.correction_step);
+    }
+    write_varint(
+        &mut body,
+        super::framed_len(header.ladder_bytes().len()) as u64,
+    );
+    if let Some(georef) = &header.georef {
+        write_georef(&mut body, georef);
+    }
+    if !header.metadata.is_empty() {
+        write_metadata(&mut body, &header.metadata);
+    }
+    finish(body)
+}
+
+/// Prepends the magic, version and header length, and appends the CRC.
+fn finish(body: Vec<u8>) -> Vec<u8> {
+    let prefix = super::MAGIC.len() + 2;
+    let mut total = prefix + body.len() + 4 + 1;
+    while varint_len(total as u64) != total - prefix - body.len() - 4 {
+        total += 1;
+    }
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(&super::MAGIC);
+    out.extend_from_slice(&2u16.to_le_bytes());
+    write_varint(&mut out, total as u64);
+    out.extend_from_slice(&body);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    debug_assert_eq!(out.len(), total);
+    out
+}
+
+fn varint_len(value: u64) -> usize {
+    (64 - value.leading_zeros() as usize).max(1).div_ceil(7)
+}
+
+fn flags(header: &Header) -> u64 {
+    let mut flags = 0;
+    for (set, bit) in [
+        (header.nodata.is_some(), flag::NODATA),
+        (header.georef.is_some(), flag::GEOREF),
+        (!header.metadata.is_empty(), flag::METADATA),
+        (header.payload_truncated, flag::PAYLOAD_TRUNCATED),
+        (bands_listed(header), flag::BANDS_LISTED),
+        (header.mask_len > 0, flag::MASK),
+        (has_residual(header), flag::RESIDUAL),
+        (max_error_listed(header), flag::MAX_ERROR),
+    ] {
+        if set {
+            flags |= bit;
+        }
+    }
+    flags
+}
+
+/// Whether the subband shifts and scales must be listed: they are not the ones a decoder
+/// derives from the dimensions (see [`derived_bands`]).
+fn bands_listed(header: &Header) -> bool {
+    derived_bands(header.wavelet, header.width, header.height, header.levels)
+        .is_none_or(|derived| derived != header.bands)
+}
+
+/// The bound of a lossless stream is 0 and of a lossy one +∞; others are listed.
+fn max_error_listed(header: &Header) -> bool {
+    header.max_error.to_bits() != implied_max_error(header.mode).to_bits()
+}
+
+fn implied_max_error(mode: Mode) -> f64 {
+    match mode {
+        Mode::Lossless => 0.0,
+        Mode::Lossy => f64::INFINITY,
+        Mode::MaxError | Mode::Precision => f64::NAN,
+    }
+}
+
+fn has_residual(header: &Header) -> bool {
+    header.residual_len > 0 || header.correction_step != 0.0
+}
+
+/// Parses the fields after the header length; `r` ends before the CRC.
+pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
+    let flags = r.varint()?;
+    if flags & !flag::ALL != 0 {
+        return Err(CodecError::InvalidHeader(format!(
+            "unknown flags {flags:#x}"
+        )));
+    }
+    let width = r.varint_u32("width")?;
+    let height = r.varint_u32("height")?;
+    let kinds = r.u8()?;
+    let mut codes = Reader {
+        data: &[kinds & 7, kinds >> 3 & 3, r.u8()?, kinds >> 5],
+        pos: 0,
+    };
+    let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
+    if flags & flag::TILED != 0 {
+        return Err(CodecError::InvalidHeader(
+            "a tiled file (this build reads single-tile files)".into(),
+        ));
+    }
+    let offset = r.number()?;
+    let (step, coefficient_step) = match wavelet {
+        Wavelet::Int53 => (r.number()?, 1.0),
+        Wavelet::Cdf97 => (1.0, r.number()?),
+    };
+    let max_error = if flags & flag::MAX_ERROR != 0 {
+        r.number()?
+    } else {
+        implied_max_error(mode)
+    };
+    let min = r.number()?;
+    let max = r.number()?;
+    let nodata = if flags & flag::NODATA != 0 {
+        Some(r.number()?)
+    } else {
+        None
+    };
+    let top_plane = match r.u8()? {
+        0xFF => None,
+        p => Some(p),
+    };
+    super::check_levels(width, height, levels)?;
+    let bands = if flags & flag::BANDS_LISTED != 0 {
+        super::read_bands(r, wavelet, levels)?
+    } else {
+        derived_bands(wavelet, width, height, levels).ok_or_else(|| {
+            CodecError::InvalidHeader("subband scales must be listed at this size".into())
+        })?
+    };
+    let payload_len = r.varint()?;
+    let mask_len = if flags & flag::MASK != 0 {
+        r.varint_u32("mask length")?
+    } else {
+        0
+    };
+    let (residual_len, correction_step) = if flags & flag::RESIDUAL != 0 {
+        (r.varint_u32("residual length")?, r.number()?)
+    } else {
+        (0, 0.0)
+    };
+    let ladder_len = r.varint_u32("ladder length")?;
+    let georef = if flags & flag::GEOREF != 0 {
+        Some(read_georef(r)?)
+    } else {
+        None
+    };
+    let metadata = if flags & flag::METADATA != 0 {
+        read_metadata(r)?
+    } else {
+        Metadata::default()
+    };
+    Ok(Header {
+        width,
+        height,
+        sample_type,
+        wavelet,
+        levels,
+        mode,
+        mapping: crate::quantize::ValueMapping { offset, step },
+        max_error,
+        coefficient_step,
+        nodata,
+        valid_range: (min, max),
+        top_plane,
+        bands,
+        payload_len,
+        payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
+        mask_len,
+        residual_len,
+        correction_step,
+        ladder_len,
+        passes: Vec::new(),
+        georef,
+        metadata,
+    })
+}
+
+/// Appends `value` as a *number*: a varint whose low two bits say what it holds —
+/// 0: an integer (zigzag, in the bits above); 1: ±infinity (+ when the bits above are
+/// 0, − when 1); 2: the eight bytes of an f64 follow; 3: the four bytes of an f32 follow
+/// (for 2 and 3 the bits above are 0).
+fn write_number(out: &mut Vec<u8>, value: f64) {
+    const EXACT: f64 = (1u64 << 53) as f64;
+    if value.fract() == 0.0 && value.abs() <= EXACT && !(value == 0.0 && value.is_sign_negative()) {
+        let i = value as i64;
+        write_varint(out, (((i << 1) ^ (i >> 63)) as u64) << 2);
+    } else if value.is_infinite() {
+        write_varint(out, if value > 0.0 { 1 } else { 1 | 1 << 2 });
+    } else if f64::from(value as f32).to_bits() == value.to_bits() {
+        write_varint(out, 3);
+        out.extend_from_slice(&(value as f32).to_bits().to_le_bytes());
+    } else {
+        write_varint(out, 2);
+        out.extend_from_slice(&value.to_bits().to_le_bytes());
+    }
+}
+
+fn write_string(out: &mut Vec<u8>, text: &str) {
+    write_varint(out, text.len() as u64);
+    out.extend_from_slice(text.as_bytes());
+}
+
+fn write_georef(out: &mut Vec<u8>, georef: &Georef) {
+    let gt = georef.geotransform;
+    let north_up = gt[2] == 0.0 && gt[4] == 0.0;
+    let square = north_up && gt[5].to_bits() == (-gt[1]).to_bits();
+    let epsg = epsg_form(georef);
+    let mut flags = 0;
+    for (set, bit) in [
+        (north_up, NORTH_UP),
+        (epsg.is_some(), EPSG_CODED),
+        (square, SQUARE_PIXELS),
+    ] {
+        if set {
+            flags |= bit;
+        }
+    }
+    out.push(flags);
+    let values: &[f64] = match (north_up, square) {
+        (true, true) => &[gt[0], gt[1], gt[3]],
+        (true, false) => &[gt[0], gt[1], gt[3], gt[5]],
+        _ => &gt,
+    };
+    for &v in values {
+        write_number(out, v);
+    }
+    match epsg {
+        Some(crs) => {
+            out.push((crs.model | crs.raster << 4) as u8);
+            write_varint(out, crs.code.into());
+        }
+        None => {
+            write_varint(out, georef.geo_key_directory.len() as u64);
+            for &key in &georef.geo_key_directory {
+                write_varint(out, key.into());
+            }
+            write_varint(out, georef.geo_double_params.len() as u64);
+            for &v in &georef.geo_double_params {
+                write_number(out, v);
+            }
+            write_string(out, &georef.geo_ascii_params);
+        }
+    }
+}
+
+fn read_georef(r: &mut Reader) -> Result<Georef, CodecError> {
+    let flags = r.u8()?;
+    let slots: &[usize] = match flags & !EPSG_CODED {
+        NORTH_UP => &[0, 1, 3, 5],
+        f if f == NORTH_UP | SQUARE_PIXELS => &[0, 1, 3],
+        0 => &[0, 1, 2, 3, 4, 5],
+        _ => return Err(CodecError::InvalidHeader("georeferencing flags".into())),
+    };
+    let mut gt = [0.0; 6];
+    for &i in slots {
+        gt[i] = r.number()?;
+    }
+    if flags & SQUARE_PIXELS != 0 {
+        gt[5] = -gt[1];
+    }
+    if flags & EPSG_CODED != 0 {
+        let types = r.u8()?;
+        let model = u16::from(types & 15);
+        let raster = u16::from(types >> 4);
+        let code = r.varint()?;
+        let crs = EpsgCrs {
+            model,
+            raster,
+            code: u16::try_from(code).unwrap_or(0),
+        };
+        if !crs.is_valid() {
+            return Err(CodecError::InvalidHeader(format!(
+                "EPSG-coded CRS (model {model}, raster {raster}, code {code})"
+            )));
+        }
+        return Ok(Georef {
+            geotransform: gt,
+            geo_key_directory: crs.keys(),
+            ..Georef::default()
+        });
+    }
+    let n = r.varint_count(1)?;
+    let geo_key_directory = (0..n)
+        .map(|_| {
+            u16::try_from(r.varint()?)
+                .map_err(|_| CodecError::InvalidHeader("a GeoKey value above 65535".into()))
+        })
+        .collect::<Result<_, _>>()?;
+    let n = r.varint_count(1)?;
+    let geo_double_params = (0..n).map(|_| r.number()).collect::<Result<_, _>>()?;
+    let geo_ascii_params = r.string()?;
+    Ok(Georef {
+        geotransform: gt,
+        geo_key_directory,
+        geo_double_params,
+        geo_ascii_params,
+    })
+}
+
+/// See [`super::stored_georef`].
+pub(super) fn stored_georef(georef: &Georef) -> Georef {
+    match epsg_form(georef) {
+        Some(crs) => Georef {
+            geotransform: georef.geotransform,
+            geo_key_directory: crs.keys(),
+            ..Georef::default()
+        },
+        None => georef.clone(),
+    }
+}
+
+/// A CRS given by its EPSG code, as the GeoKeys GTModelType, GTRasterType and
+/// GeographicType or ProjectedCSType say it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct EpsgCrs {
+    model: u16,
+    raster: u16,
+    code: u16,
+}
+
+impl EpsgCrs {
+    fn is_valid(&self) -> bool {
+        matches!(self.model, MODEL_PROJECTED | MODEL_GEOGRAPHIC)
+            && matches!(self.raster, 1 | 2)
+            && (1024..32767).contains(&self.code)
+    }
+
+    fn code_key(&self) -> u16 {
+        if self.model == MODEL_PROJECTED {
+            PROJECTED_TYPE_KEY
+        } else {
+            GEOGRAPHIC_TYPE_KEY
+        }
+    }
+
+    /// The GeoKey directory that says this CRS and nothing more.
+    fn keys(&self) -> Vec<u16> {
+        #[rustfmt::skip]
+        let keys = vec![
+            1, 1, 0, 3,
+            MODEL_TYPE_KEY, 0, 1, self.model,
+            RASTER_TYPE_KEY, 0, 1, self.raster,
+            self.code_key(), 0, 1, self.code,
+        ];
+        keys
+    }
+}
+
+/// The EPSG code, model and raster type of `georef`'s GeoKeys when they say no more than
+/// an EPSG code does: besides those three keys, only keys that restate the code
+/// (citations, degree or metre units, and the WGS 84 ellipsoid of EPSG:4326).
+fn epsg_form(georef: &Georef) -> Option<EpsgCrs> {
+    let dir = &georef.geo_key_directory;
+    if dir.get(..3)? != [1, 1, 0] || dir.len() != 4 + 4 * usize::from(dir[3]) {
+        return None;
+    }
+    let value = |id: u16| {
+        dir[4..]
+            .chunks_exact(4)
+            .find(|k| k[0] == id && k[1] == 0 && k[2] == 1)
+            .map(|k| k[3])
+    };
+    let model = value(MODEL_TYPE_KEY)?;
+    let crs = EpsgCrs {
+        model,
+        raster: value(RASTER_TYPE_KEY)?,
+        code: value(if model == MODEL_PROJECTED {
+            PROJECTED_TYPE_KEY
+        } else {
+            GEOGRAPHIC_TYPE_KEY
+        })?,
+    };
+    let wgs84 = crs.model == MODEL_GEOGRAPHIC && crs.code == 4326;
+    let restates = |k: &[u16]| match (k[0], k[1]) {
+        (MODEL_TYPE_KEY | RASTER_TYPE_KEY, 0) => true,
+        (id, 0) if id == crs.code_key() => true,
+        // GTCitation, GeogCitation, PCSCitation.
+        (1026 | 2049 | 3073, 34737) => true,
+        // Angular unit degree (GDAL writes it for projected CRSs too); linear unit metre.
+        (2054, 0) => k[3] == 9102,
+        (3076, 0) => crs.model == MODEL_PROJECTED && k[3] == 9001,
+        // Semi-major, semi-minor axis, inverse flattening of WGS 84.
+        (2057, 34736) => wgs84 && double(georef, k) == Some(6378137.0),
+        (2058, 34736) => wgs84 && double(georef, k) == Some(6356752.314245179),
+        (2059, 34736) => wgs84 && double(georef, k) == Some(298.257223563),
+        _ => false,
+    };
+    (crs.is_valid() && dir[4..].chunks_exact(4).all(restates)).then_some(crs)
+}
+
+/// The single GeoDoubleParams value a key points at.
+fn double(georef: &Georef, key: &[u16]) -> Option<f64> {
+    (key[2] == 1)
+        .then(|| georef.geo_double_params.get(usize::from(key[3])).copied())
+        .flatten()
+}
+
+fn write_metadata(out: &mut Vec<u8>, metadata: &Metadata) {
+    let mut entries: Vec<(u8, Vec<u8>)> = Vec::new();
+    for (role, value) in [
+        (role::SCALE, metadata.scale),
+        (role::OFFSET, metadata.offset),
+    ] {
+        if let Some(v) = value {
+            let mut body = Vec::new();
+            write_number(&mut body, v);
+            entries.push((role, body));
+        }
+    }
+    for (role, text) in [
+        (role::DESCRIPTION, &metadata.description),
+        (role::UNIT_TYPE, &metadata.unit_type),
+        (role::CRS_WKT, &metadata.crs_wkt),
+    ] {
+        if let Some(text) = text {
+            let mut body = Vec::new();
+            write_string(&mut body, text);
+            entries.push((role, body));
+        }
+    }
+    for item in &metadata.items {
+        let mut body = Vec::new();
+        write_string(&mut body, &item.name);
+        write_string(&mut body, &item.domain);
+        write_string(&mut body, &item.value);
+        let role = if item.band {
+            role::BAND_ITEM
+        } else {
+            role::DATASET_ITEM
+        };
+        entries.push((role, body));
+    }
+    write_varint(out, entries.len() as u64);
+    for (role, body) in entries {
+        out.push(role);
+        write_varint(out, body.len() as u64);
+        out.extend_from_slice(&body);
+    }
+}
+
+fn read_metadata(r: &mut Reader) -> Result<Metadata, CodecError> {
+    let mut metadata = Metadata::default();
+    let count = r.varint_count(2)?;
+    for _ in 0..count {
+        let role = r.u8()?;
+        let len = r.varint_count(1)?;
+        let mut entry = Reader {
+            data: r.bytes(len)?,
+            pos: 0,
+        };
+        let repeated = || CodecError::InvalidHeader(format!("metadata role {role} repeated"));
+        match role {
+            role::SCALE | role::OFFSET => {
+                let slot = if role == role::SCALE {
+                    &mut metadata.scale
+                } else {
+                    &mut metadata.offset
+                };
+                if slot.replace(entry.number()?).is_some() {
+                    return Err(repeated());
+                }
+            }
+            role::DESCRIPTION | role::UNIT_TYPE | role::CRS_WKT => {
+                let slot = match role {
+                    role::DESCRIPTION => &mut metadata.description,
+                    role::UNIT_TYPE => &mut metadata.unit_type,
+                    _ => &mut metadata.crs_wkt,
+                };
+                if slot.replace(entry.string()?).is_some() {
+                    return Err(repeated());
+                }
+            }
+            role::DATASET_ITEM | role::BAND_ITEM => metadata.items.push(MetadataItem {
+                name: entry.string()?,
+                domain: entry.string()?,
+                value: entry.string()?,
+                band: role == role::BAND_ITEM,
+            }),
+            // Roles a later version defines: skipped.
+            _ => entry.pos = entry.data.len(),
+        }
+        if entry.pos != entry.data.len() {
+            return Err(CodecError::InvalidHeader(format!(
+                "metadata entry of role {role} has trailing bytes"
+            )));
+        }
+    }
+    Ok(metadata)
+}
+
+impl Reader<'_> {
+    /// A varint that must fit in a u32.
+    fn varint_u32(&mut self, what: &str) -> Result<u32, CodecError> {
+        u32::try_from(self.varint()?)
+            .map_err(|_| CodecError::InvalidHeader(format!("{what} above 2^32")))
+    }
+
+    /// A *number* (see [`write_number`]).
+    fn number(&mut self) -> Result<f64, CodecError> {
+        let v = self.varint()?;
+        match (v & 3, v >> 2) {
+            (0, z) => Ok(((z >> 1) as i64 ^ -((z & 1) as i64)) as f64),
+            (1, 0) => Ok(f64::INFINITY),
+            (1, 1) => Ok(f64::NEG_INFINITY),
+            (2, 0) => self.f64(),
+            (3, 0) => Ok(f64::from(f32::from_bits(self.u32()?))),
+            _ => Err(CodecError::InvalidHeader(format!("number code {v}"))),
+        }
+    }
+
+    /// A varint element count whose elements of at least `size` bytes fit in what is left.
+    fn varint_count(&mut self, size: usize) -> Result<usize, CodecError> {
+        let n = usize::try_from(self.varint()?).unwrap_or(usize::MAX);
+        if n.saturating_mul(size) > self.data.len() - self.pos {
+            return Err(CodecError::InvalidHeader(
+                "a list runs past the header".into(),
+            ));
+        }
+        Ok(n)
+    }
+
+    /// A varint length, then that many bytes of UTF-8.
+    fn string(&mut self) -> Result<String, CodecError> {
+        let len = self.varint_count(1)?;
+        String::from_utf8(self.bytes(len)?.to_vec())
+            .map_err(|_| CodecError::InvalidHeader("header text is not UTF-8".into()))
+    }
+}
