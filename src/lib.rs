@@ -10,3 +10,4 @@ pub mod memory;
 pub mod mesh;
 pub mod metrics;
 pub mod report;
+pub mod view;

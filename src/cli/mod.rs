@@ -5,6 +5,7 @@ mod demo;
 mod mesh;
 mod report;
 mod verify;
+mod view;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -41,6 +42,10 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Measure every DEM of a manifest folder beside the peer tools' results (README tables).
     Report(report::ReportArgs),
+    /// One view-dependent mesh of a .ezw stream for a camera (geomorphed, crack-free).
+    View(view::ViewArgs),
+    /// A camera path over a .ezw stream: incremental split/merge, geomorphing, popping.
+    Flythrough(view::FlythroughArgs),
 }
 
 /// Wavelet choice on the command line.
@@ -148,6 +153,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Table(args) => mesh::table(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
+        Command::View(args) => view::view(&args),
+        Command::Flythrough(args) => view::flythrough(&args),
     }
 }
 
