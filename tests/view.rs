@@ -109,14 +109,14 @@ fn frame_cracks(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(ProptestConfig::with_cases(64))]
 
     /// Every frame of a random flight: no crack in the morphed mesh, and the incremental
     /// selection equal to the from-scratch one.
     #[test]
     fn random_flights_are_crack_free_and_incremental_equals_rebuild(
         w in 9usize..70, h in 9usize..70, seed in any::<u64>(), voids in any::<bool>(),
-        height in 5.0f64..80.0, turn in -2.0f64..2.0, tau in 0.3f64..4.0, frames in 3usize..12,
+        height in 5.0f64..80.0, turn in -2.0f64..2.0, tau in 0.3f64..4.0, frames in 3usize..16, step in 0.001f64..0.1,
     ) {
         let decoded = decode_with_map(&terrain(w, h, seed, voids));
         let terrain = decoded.terrain();
@@ -125,7 +125,7 @@ proptest! {
         let first = flight(w, h, 0.0, height, turn);
         let mut incremental = Incremental::new(&terrain, &first, rule);
         for f in 0..frames {
-            let view = flight(w, h, f as f64 / frames as f64, height, turn);
+            let view = flight(w, h, f as f64 * step, height, turn);
             if f > 0 {
                 incremental.update(&terrain, &view);
             }
@@ -196,5 +196,354 @@ fn geomorphing_bounds_vertex_jumps() {
     assert!(
         morphed_worst < 0.25 * unmorphed_worst,
         "morphed {morphed_worst} vs {unmorphed_worst}"
+    );
+}
+
+/// A camera looking away from the terrain sees nothing: every region stays at the
+/// coarsest level (only nodata splits).
+#[test]
+fn regions_out_of_view_stay_coarsest() {
+    for voids in [false, true] {
+        let decoded = decode_with_map(&terrain(65, 49, 3, voids));
+        let terrain = decoded.terrain();
+        let away = Camera::new(
+            DVec3::new(-50.0, 20.0, 30.0),
+            DVec3::new(-200.0, 20.0, 30.0),
+            60.0,
+            (320, 180),
+        )
+        .unwrap()
+        .view();
+        let coarsest = Rule::ScreenSpace { tau: f64::MAX };
+        for rule in [
+            Rule::ScreenSpace { tau: 0.01 },
+            Rule::Area { a: 0.0, b: 0.0 },
+        ] {
+            let tree = terrain.select(&away, rule);
+            assert!(
+                tree.leaves() == terrain.select(&away, coarsest).leaves(),
+                "{rule:?} voids {voids}"
+            );
+        }
+        // Looking at it instead, a fine tolerance refines.
+        let towards = flight(65, 49, 0.3, 20.0, 0.0);
+        let fine = terrain.select(&towards, Rule::ScreenSpace { tau: 0.01 });
+        assert!(fine.leaves().len() > terrain.select(&towards, coarsest).leaves().len());
+    }
+}
+
+/// Finer tolerances (smaller τ, smaller a) never give fewer triangles, and every such
+/// mesh is crack-free and covers exactly the cells with four valid corners.
+#[test]
+fn tolerances_order_the_meshes() {
+    let decoded = decode_with_map(&terrain(97, 81, 11, true));
+    let terrain = decoded.terrain();
+    let view = flight(97, 81, 0.35, 25.0, 0.3);
+    let mut scratch = MorphScratch::default();
+    let valid_cells = (0..80 * 96)
+        .filter(|&c| !terrain.is_void(0, c % 96, c / 96))
+        .count();
+    for rules in [
+        [0.25, 1.0, 4.0, 16.0].map(|tau| Rule::ScreenSpace { tau }),
+        [1e-4, 1e-3, 1e-2, 1e-1].map(|a| Rule::Area { a, b: 0.0 }),
+    ] {
+        let mut previous = usize::MAX;
+        for rule in rules {
+            let tree = terrain.select(&view, rule);
+            let mesh = terrain.triangulate(&tree);
+            let morphed = morph(&terrain, &view, rule, &tree, &mesh, &mut scratch);
+            assert_eq!(
+                count_cracks(&terrain, &mesh, |_, v| morphed[v as usize]),
+                0,
+                "{rule:?}"
+            );
+            let area2: i64 = mesh
+                .triangles
+                .iter()
+                .map(|t| {
+                    let p = t.map(|v| {
+                        let (x, y) = mesh.vertex_position(v);
+                        (x as i64, y as i64)
+                    });
+                    (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0)
+                })
+                .sum();
+            assert_eq!(
+                area2,
+                2 * valid_cells as i64,
+                "{rule:?}: the mesh must cover every valid cell once"
+            );
+            assert!(
+                mesh.triangles.len() <= previous,
+                "{rule:?}: {} > {previous}",
+                mesh.triangles.len()
+            );
+            previous = mesh.triangles.len();
+        }
+    }
+}
+
+/// A crack count that can fail: a mesh with a triangle removed, or with one corner's
+/// height differing between two triangles, has cracks.
+#[test]
+fn the_crack_count_sees_holes_and_mismatched_heights() {
+    let decoded = decode_with_map(&terrain(33, 33, 5, false));
+    let terrain = decoded.terrain();
+    let view = flight(33, 33, 0.4, 15.0, 0.0);
+    let rule = Rule::ScreenSpace { tau: 1.0 };
+    let tree = terrain.select(&view, rule);
+    let mut mesh = terrain.triangulate(&tree);
+    let heights: Vec<f64> = mesh
+        .vertices
+        .iter()
+        .map(|&s| decoded.heights[s as usize])
+        .collect();
+    assert_eq!(count_cracks(&terrain, &mesh, |_, v| heights[v as usize]), 0);
+    // Triangle 0's corners seen differently by triangle 0 than by its neighbours.
+    let shifted = count_cracks(&terrain, &mesh, |t, v| {
+        heights[v as usize] + if t == 0 { 1.0 } else { 0.0 }
+    });
+    assert!(shifted > 0);
+    let interior = mesh
+        .triangles
+        .iter()
+        .position(|t| {
+            t.iter().all(|&v| {
+                let (x, y) = mesh.vertex_position(v);
+                x > 0 && y > 0 && x < 32 && y < 32
+            })
+        })
+        .expect("an interior triangle");
+    mesh.triangles.remove(interior);
+    assert!(count_cracks(&terrain, &mesh, |_, v| heights[v as usize]) > 0);
+}
+
+/// The shared DEM with SRTM-style voids: a flight with no crack, the incremental
+/// selection equal to the rebuild every frame, and morphing bounding the jumps.
+#[test]
+fn shared_dem_alps_srtm_voids_flight_needs_shared_dems() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/dem/alps_srtm_voids/alps_srtm_voids.tif");
+    if !path.exists() {
+        eprintln!(
+            "SKIPPED shared_dem_alps_srtm_voids_flight: {} is absent",
+            path.display()
+        );
+        return;
+    }
+    let raster = wavemesh::dem::read_dem(&path, &wavemesh::dem::ReadOptions::default()).unwrap();
+    let decoded = decode_with_map(&raster);
+    let terrain = decoded.terrain();
+    let (w, h) = (decoded.width, decoded.height);
+    let rule = Rule::ScreenSpace { tau: 1.0 };
+    let mut scratch = MorphScratch::default();
+    let path_view = |t: f64| {
+        let eye = DVec3::new(w as f64 * (0.1 + 0.6 * t), h as f64 * 0.5, 5500.0);
+        Camera::new(
+            eye,
+            eye + DVec3::new(300.0, 100.0, -2500.0),
+            60.0,
+            (800, 450),
+        )
+        .unwrap()
+        .view()
+    };
+    let mut incremental = Incremental::new(&terrain, &path_view(0.0), rule);
+    for f in 0..8 {
+        let view = path_view(f as f64 * 0.01);
+        incremental.update(&terrain, &view);
+        assert!(
+            incremental.tree().leaves() == terrain.select(&view, rule).leaves(),
+            "frame {f}"
+        );
+        assert_eq!(
+            frame_cracks(&terrain, &view, rule, &incremental, &mut scratch),
+            0,
+            "frame {f}"
+        );
+    }
+}
+
+// --- The command line -----------------------------------------------------------------
+
+fn wavemesh(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// The bundled sample with voids, encoded into `dir`.
+fn sample_stream(dir: &std::path::Path) -> String {
+    let sample =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples/jacksboro_voids.tif");
+    let stream = dir.join("voids.ezw");
+    let out = wavemesh(&[
+        "encode",
+        sample.to_str().unwrap(),
+        "-o",
+        stream.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stream.to_str().unwrap().to_string()
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let out = wavemesh(args);
+    assert!(
+        out.status.success(),
+        "wavemesh {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+#[test]
+fn cli_view_writes_a_crack_free_mesh_and_compares_the_rules() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = sample_stream(dir.path());
+    let mesh = dir.path().join("view.obj");
+    let png = dir.path().join("view.png");
+    let report = json(&[
+        "view",
+        &stream,
+        "--camera",
+        "-40,170,1400",
+        "--look",
+        "200,170,600",
+        "--viewport",
+        "640x360",
+        "-o",
+        mesh.to_str().unwrap(),
+        "--render",
+        png.to_str().unwrap(),
+        "--compare-rules",
+        "--json",
+    ]);
+    assert_eq!(report["cracks"], 0);
+    let triangles = report["triangles"].as_u64().unwrap();
+    assert!(triangles > 100, "{report}");
+    assert!(report["screen_error"]["samples"].as_u64().unwrap() > 1000);
+    let other = report["other_rule"]["triangles"].as_u64().unwrap();
+    assert!(
+        other.abs_diff(triangles) * 10 < triangles,
+        "{other} vs {triangles}"
+    );
+    let obj = std::fs::read_to_string(&mesh).unwrap();
+    assert_eq!(
+        obj.lines().filter(|l| l.starts_with("f ")).count() as u64,
+        triangles
+    );
+    assert!(image::open(&png).unwrap().width() > 100);
+}
+
+#[test]
+fn cli_flythrough_reports_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = sample_stream(dir.path());
+    let frames = dir.path().join("frames");
+    let meshes = dir.path().join("meshes");
+    let path = dir.path().join("path.csv");
+    std::fs::write(
+        &path,
+        "x,y,z,lx,ly,lz\n0,170,1300,200,170,600\n60,180,1250,260,180,600\n",
+    )
+    .unwrap();
+    let report = json(&[
+        "flythrough",
+        &stream,
+        "--path",
+        path.to_str().unwrap(),
+        "--frames",
+        "5",
+        "--viewport",
+        "640x360",
+        "--render",
+        frames.to_str().unwrap(),
+        "--export-frames",
+        meshes.to_str().unwrap(),
+        "--json",
+    ]);
+    let list = report["frames"].as_array().unwrap();
+    assert_eq!(list.len(), 5);
+    for frame in list {
+        for field in [
+            "triangles",
+            "split",
+            "merged",
+            "incremental_ms",
+            "rebuild_ms",
+            "cracks",
+            "max_jump",
+            "max_jump_unmorphed",
+        ] {
+            assert!(frame.get(field).is_some(), "{field} missing: {frame}");
+        }
+        assert_eq!(frame["cracks"], 0);
+        assert_eq!(frame["matches_rebuild"], true);
+        assert!(
+            frame["max_jump"].as_f64().unwrap()
+                <= frame["max_jump_unmorphed"].as_f64().unwrap() + 1e-9
+        );
+    }
+    assert_eq!(std::fs::read_dir(&frames).unwrap().count(), 5);
+    assert_eq!(std::fs::read_dir(&meshes).unwrap().count(), 5);
+    let orbit = json(&["flythrough", &stream, "--orbit", "--frames", "3", "--json"]);
+    assert_eq!(orbit["frames"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn cli_view_refuses_bad_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = sample_stream(dir.path());
+    let out = dir.path().join("m.obj");
+    let out = out.to_str().unwrap();
+    let code = |args: &[&str]| {
+        let o = wavemesh(args);
+        let stderr = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(
+            !stderr.trim().is_empty() && !stderr.contains("panicked"),
+            "{args:?}: {stderr}"
+        );
+        o.status.code()
+    };
+    assert_eq!(
+        code(&["view", &stream, "--camera", "1,1,1", "--look", "1,1,1", "-o", out]),
+        Some(2)
+    );
+    assert_eq!(
+        code(&["view", &stream, "--camera", "1,1", "--look", "1,1,1", "-o", out]),
+        Some(2)
+    );
+    assert_eq!(
+        code(&["view", &stream, "--camera", "0,0,9", "--look", "1,1,1", "--tau", "0", "-o", out]),
+        Some(2)
+    );
+    assert_eq!(
+        code(&["view", &stream, "--camera", "0,0,9", "--look", "1,1,1", "-o", "m.stl"]),
+        Some(2)
+    );
+    assert_eq!(
+        code(&[
+            "view",
+            "/nonexistent.ezw",
+            "--camera",
+            "0,0,9",
+            "--look",
+            "1,1,1",
+            "-o",
+            out
+        ]),
+        Some(3)
+    );
+    let bad_path = dir.path().join("bad.csv");
+    std::fs::write(&bad_path, "1,2,3\n").unwrap();
+    assert_eq!(
+        code(&["flythrough", &stream, "--path", bad_path.to_str().unwrap()]),
+        Some(3)
     );
 }

@@ -159,18 +159,26 @@ impl View {
         f64::from(self.camera.viewport.0) * f64::from(self.camera.viewport.1)
     }
 
-    /// How far the box `lo..=hi` lies outside the view frustum (0 when it meets it), in
-    /// world units: the largest distance of its nearest corner behind any frustum plane.
+    /// How far the box `lo..=hi` reaches into the view frustum, in world units: the
+    /// smallest, over the frustum's planes, distance of the box's farthest corner in
+    /// front of the plane. Negative when the box lies outside (by minus that much), so
+    /// the frustum meets the box while the camera moves less than a positive clearance.
     #[inline]
-    pub fn outside_distance(&self, lo: DVec3, hi: DVec3) -> f64 {
+    pub fn frustum_clearance(&self, lo: DVec3, hi: DVec3) -> f64 {
         let eye = self.camera.eye;
-        let mut outside = 0.0f64;
+        let mut clearance = f64::INFINITY;
         for n in &self.planes {
             // The box corner farthest along the plane's inward normal.
             let p = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
-            outside = outside.max(-n.dot(p - eye));
+            clearance = clearance.min(n.dot(p - eye));
         }
-        outside
+        clearance
+    }
+
+    /// How far the box `lo..=hi` lies outside the view frustum (0 when it meets it).
+    #[inline]
+    pub fn outside_distance(&self, lo: DVec3, hi: DVec3) -> f64 {
+        (-self.frustum_clearance(lo, hi)).max(0.0)
     }
 
     /// The rotation angle (radians) between this camera's frame and `other`'s.

@@ -2,11 +2,12 @@
 //! leaves are read from one buffer and the next frame's written to the other, visiting
 //! only leaves whose decision may have changed instead of descending from the roots.
 //!
-//! Each leaf carries an *expiry*: how far the camera may travel (in world units of
-//! "motion", see [`camera_motion`]) before the leaf could need a split or its parent a
-//! merge. A camera motion of `Δ` moves every box distance and every frustum-plane
-//! distance by at most `Δ`, which bounds how much any node's ratio can change; leaves
-//! whose expiry is still ahead are copied as they are. The others are evaluated again: a
+//! Each leaf carries an *expiry*: how far the camera may travel before the leaf could
+//! need a split or its parent a merge, in two measures of motion accumulated frame after
+//! frame (see [`camera_motion`]): the eye's displacement, which bounds how far any box
+//! distance moves, and that plus the rotation angle times the farthest terrain corner,
+//! which bounds how far any frustum-plane distance moves. Those bound how much any
+//! node's ratio can change; leaves whose expiry is still ahead are copied as they are. The others are evaluated again: a
 //! leaf whose parent no longer splits merges up to the highest such ancestor, a leaf that
 //! now splits is refined from there down. The result equals [`ViewTerrain::select`] for
 //! the same camera (the property tests check it frame after frame). The area rule has no
@@ -22,12 +23,12 @@ pub struct Incremental {
     rule: Rule,
     tree: CellTree,
     /// Expiry of every leaf of `tree`, in the same order.
-    expiry: Vec<f64>,
+    expiry: Vec<Expiry>,
     /// The ping-pong buffers the next frame is written to.
     spare_cells: Vec<Cell>,
-    spare_expiry: Vec<f64>,
+    spare_expiry: Vec<Expiry>,
     /// Camera motion accumulated since the first frame.
-    travelled: f64,
+    travelled: Expiry,
     last: View,
     /// Corners of the terrain's bounding box.
     extent: [glam::DVec3; 8],
@@ -47,6 +48,47 @@ pub struct UpdateStats {
 /// Slack safety factor: decisions are re-evaluated slightly before the bound says.
 const SAFETY: f64 = 0.999;
 
+/// Camera motion in the two measures: eye displacement (bounds box distances) and eye
+/// displacement plus rotation times reach (bounds frustum-plane distances). Used both
+/// for accumulated motion and for the point a leaf expires at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Expiry {
+    /// Box-distance measure.
+    pub distance: f64,
+    /// Frustum-plane measure.
+    pub frustum: f64,
+}
+
+impl Expiry {
+    const NEVER: Expiry = Expiry {
+        distance: f64::INFINITY,
+        frustum: f64::INFINITY,
+    };
+    const NOW: Expiry = Expiry {
+        distance: 0.0,
+        frustum: 0.0,
+    };
+
+    fn min(self, other: Expiry) -> Expiry {
+        Expiry {
+            distance: self.distance.min(other.distance),
+            frustum: self.frustum.min(other.frustum),
+        }
+    }
+
+    fn after(self, slack: Expiry) -> Expiry {
+        Expiry {
+            distance: self.distance + slack.distance.max(0.0) * SAFETY,
+            frustum: self.frustum + slack.frustum.max(0.0) * SAFETY,
+        }
+    }
+
+    /// Whether motion `travelled` is still short of this expiry.
+    fn ahead_of(self, travelled: Expiry) -> bool {
+        self.distance > travelled.distance && self.frustum > travelled.frustum
+    }
+}
+
 impl Incremental {
     /// The selection for `view` from scratch, ready to be updated.
     pub fn new(terrain: &ViewTerrain<'_>, view: &View, rule: Rule) -> Incremental {
@@ -64,7 +106,7 @@ impl Incremental {
             expiry: Vec::new(),
             spare_cells: Vec::new(),
             spare_expiry: Vec::new(),
-            travelled: 0.0,
+            travelled: Expiry::NOW,
             last: *view,
             extent,
         };
@@ -90,7 +132,7 @@ impl Incremental {
     pub fn update(&mut self, terrain: &ViewTerrain<'_>, view: &View) -> UpdateStats {
         let motion = camera_motion(&self.last, view, &self.extent);
         self.last = *view;
-        if !motion.is_finite() {
+        if !motion.frustum.is_finite() {
             // A new projection: start again.
             let before = self.tree.leaves().len();
             self.tree = terrain.select(view, self.rule);
@@ -100,7 +142,8 @@ impl Incremental {
                 ..UpdateStats::default()
             };
         }
-        self.travelled += motion;
+        self.travelled.distance += motion.distance;
+        self.travelled.frustum += motion.frustum;
         let mut old = std::mem::take(&mut self.spare_cells);
         self.tree.swap_leaves(&mut old);
         let mut cells = Vec::new();
@@ -114,7 +157,7 @@ impl Incremental {
             if cells.last().is_some_and(|&last| contains(last, cell)) {
                 continue; // merged into the last cell written
             }
-            if until > self.travelled {
+            if until.ahead_of(self.travelled) {
                 cells.push(cell);
                 expiry.push(until);
                 continue;
@@ -136,7 +179,7 @@ impl Incremental {
         view: &View,
         cell: Cell,
         cells: &mut Vec<Cell>,
-        expiry: &mut Vec<f64>,
+        expiry: &mut Vec<Expiry>,
         stats: &mut UpdateStats,
     ) {
         let top = self.merge_target(terrain, view, cell);
@@ -198,7 +241,7 @@ impl Incremental {
         view: &View,
         cell: Cell,
         cells: &mut Vec<Cell>,
-        expiry: &mut Vec<f64>,
+        expiry: &mut Vec<Expiry>,
     ) {
         self.tree.set_split(cell, true);
         let parent_view = self.evaluate(terrain, view, cell);
@@ -209,7 +252,7 @@ impl Incremental {
             if child.level == 0 {
                 if !void {
                     cells.push(child);
-                    expiry.push(self.travelled + parent_slack);
+                    expiry.push(self.travelled.after(parent_slack));
                 }
                 continue;
             }
@@ -219,7 +262,7 @@ impl Incremental {
             } else {
                 cells.push(child);
                 let slack = self.stay_unsplit(own).min(parent_slack);
-                expiry.push(self.travelled + slack);
+                expiry.push(self.travelled.after(slack));
             }
         }
     }
@@ -236,73 +279,101 @@ impl Incremental {
         view: &View,
         cell: Cell,
         own: Option<NodeView>,
-    ) -> f64 {
+    ) -> Expiry {
         let own_slack = if cell.level == 0 {
-            f64::INFINITY
+            Expiry::NEVER
         } else {
             self.stay_unsplit(own.unwrap_or_else(|| self.evaluate(terrain, view, cell)))
         };
         let parent_slack = if cell.level >= terrain.levels() {
-            f64::INFINITY
+            Expiry::NEVER
         } else {
             let parent = parent_of(cell);
             self.stay_split(terrain, parent, self.evaluate(terrain, view, parent))
         };
-        self.travelled + own_slack.min(parent_slack)
+        self.travelled.after(own_slack.min(parent_slack))
     }
 
     /// How far the camera may move before a node that does not split (`r ≤ 1`) could.
-    /// `r' ≤ (φ + Δ/m) · A / (d − Δ)`, and `r' ≤ A / (d − Δ)`: either bound staying ≤ 1
-    /// suffices.
-    fn stay_unsplit(&self, node: NodeView) -> f64 {
+    /// With `r = φ·A/d`: `r' ≤ A / (d − Δ)` stays ≤ 1 while the distance moves less than
+    /// `d − A`; when that is not positive (φ < 1 holds the node back),
+    /// `r' ≤ (φ + Δ/m) · A / (d − Δ)` stays ≤ 1 for a frustum motion up to
+    /// `(d − φA) / (A/m + 1)`.
+    fn stay_unsplit(&self, node: NodeView) -> Expiry {
         if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return 0.0;
+            return Expiry::NOW;
         }
         let a = node.weight;
         if a == 0.0 {
-            return f64::INFINITY;
+            return Expiry::NEVER;
         }
-        let by_frustum = (node.distance - node.frustum * a) / (a / node.margin + 1.0);
-        let by_distance = node.distance - a;
-        by_frustum.max(by_distance).max(0.0) * SAFETY
+        if node.distance > a {
+            return Expiry {
+                distance: node.distance - a,
+                frustum: f64::INFINITY,
+            };
+        }
+        Expiry {
+            distance: f64::INFINITY,
+            frustum: (node.distance - node.frustum * a) / (a / node.margin + 1.0),
+        }
     }
 
     /// How far the camera may move before a split node (`r > 1`) could stop splitting:
-    /// `r' ≥ (φ − Δ/m) · A / (d + Δ)` stays above 1.
-    fn stay_split(&self, terrain: &ViewTerrain<'_>, cell: Cell, node: NodeView) -> f64 {
+    /// while the frustum moves less than the box's clearance φ stays 1 and
+    /// `r' ≥ A / (d + Δ)` stays above 1 for a distance motion up to `A − d`; otherwise
+    /// `r' ≥ (φ − Δ/m) · A / (d + Δ)` stays above 1 for a frustum motion up to
+    /// `(φA − d) / (A/m + 1)`.
+    fn stay_split(&self, terrain: &ViewTerrain<'_>, cell: Cell, node: NodeView) -> Expiry {
         let (i, j) = cell.position();
         if terrain.is_void(cell.level, i, j) {
-            return f64::INFINITY;
+            return Expiry::NEVER;
         }
         if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return 0.0;
+            return Expiry::NOW;
         }
         let a = node.weight;
-        ((node.frustum * a - node.distance) / (a / node.margin + 1.0)).max(0.0) * SAFETY
+        let general = (node.frustum * a - node.distance) / (a / node.margin + 1.0);
+        if node.clearance > 0.0 && a - node.distance > general {
+            return Expiry {
+                distance: a - node.distance,
+                frustum: node.clearance,
+            };
+        }
+        Expiry {
+            distance: f64::INFINITY,
+            frustum: general,
+        }
     }
 }
 
-/// An upper bound on how far any box distance or frustum-plane distance (for points of
-/// the terrain box `extent`) moves from `from` to `to`: the eye's displacement plus the
-/// frame's rotation angle times the farthest terrain corner. Infinite when the projection
-/// changed.
-pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8]) -> f64 {
+/// Upper bounds on how far box distances and frustum-plane distances (for points of the
+/// terrain box `extent`) move from `from` to `to`: the eye's displacement, and that plus
+/// the frame's rotation angle times the farthest terrain corner. Infinite when the
+/// projection changed.
+pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8]) -> Expiry {
     if from.camera.fov_degrees != to.camera.fov_degrees
         || from.camera.viewport != to.camera.viewport
     {
-        return f64::INFINITY;
+        return Expiry::NEVER;
     }
     let shift = from.camera.eye.distance(to.camera.eye);
     let angle = from.rotation_to(to);
     if angle == 0.0 {
-        return shift;
+        return Expiry {
+            distance: shift,
+            frustum: shift,
+        };
     }
     let reach = extent
         .iter()
         .map(|p| p.distance(to.camera.eye))
         .fold(0.0, f64::max);
     // |n' − n| = 2 sin(θ/2) ≤ θ; a small margin covers rounding in the angle.
-    shift + (angle * 1.001 + 1e-12) * reach
+    Expiry {
+        distance: shift,
+        frustum: shift + (angle * 1.001 + 1e-12) * reach,
+    }
 }
 
 fn parent_of(cell: Cell) -> Cell {

@@ -18,8 +18,8 @@
 //! every height moves continuously with the camera.
 
 use super::camera::View;
-use super::selection::{Rule, ViewTerrain};
-use crate::mesh::cells::CellTree;
+use super::selection::{blend_of_ratio, Rule, ViewTerrain};
+use crate::mesh::cells::{Cell, CellTree};
 use crate::mesh::pyramid::{node_bounds, Diagonal};
 use crate::mesh::GridMesh;
 
@@ -32,6 +32,9 @@ pub struct MorphScratch {
     order: Vec<u32>,
     /// Vertices per birth level.
     counts: Vec<usize>,
+    /// Blend factor of every split node this frame, index `m − 1` for level `m`
+    /// (meaningless for nodes that did not split).
+    blends: Vec<Vec<f32>>,
 }
 
 /// How coarse a coordinate is along a side of `samples` samples: the highest level at
@@ -62,6 +65,15 @@ pub fn morph(
         scratch.by_sample = vec![0.0; w * h];
     }
     order_by_birth(mesh, levels, scratch);
+    split_blends(terrain, view, rule, tree, &mut scratch.blends);
+    let blends = &scratch.blends;
+    let blend = |m: u32, i: usize, j: usize| {
+        if tree.is_split(m, i, j) {
+            f64::from(blends[m as usize - 1][j * tree.nodes(m).0 + i])
+        } else {
+            0.0
+        }
+    };
     let mut out = vec![0.0; mesh.vertices.len()];
     for &v in &scratch.order {
         let s = mesh.vertices[v as usize] as usize;
@@ -71,16 +83,8 @@ pub fn morph(
         let z = if birth >= levels {
             truth
         } else {
-            let (coarse, blend) = parent_height(
-                terrain,
-                view,
-                rule,
-                tree,
-                &scratch.by_sample,
-                x,
-                y,
-                birth + 1,
-            );
+            let (coarse, blend) =
+                parent_height(terrain, &blend, &scratch.by_sample, x, y, birth + 1);
             if blend >= 1.0 {
                 truth
             } else {
@@ -120,14 +124,55 @@ fn order_by_birth(mesh: &GridMesh, levels: u32, scratch: &mut MorphScratch) {
     }
 }
 
-/// `(v_p, b)` of the vertex at (`x`, `y`) born below level `parent`: from the parents'
-/// edge through it, or from the parent it lies inside.
-#[allow(clippy::too_many_arguments)]
-fn parent_height(
+/// The blend factor of every split node of `tree` (1 for void ones), one evaluation each,
+/// into `blends`.
+fn split_blends(
     terrain: &ViewTerrain<'_>,
     view: &View,
     rule: Rule,
     tree: &CellTree,
+    blends: &mut Vec<Vec<f32>>,
+) {
+    let levels = terrain.levels();
+    blends.resize(levels as usize, Vec::new());
+    for m in 1..=levels {
+        let (nw, nh) = tree.nodes(m);
+        blends[m as usize - 1].resize(nw * nh, 0.0);
+    }
+    let mut stack: Vec<Cell> = Vec::new();
+    if levels > 0 {
+        let (rw, rh) = tree.nodes(levels);
+        stack.extend((0..rh).flat_map(|j| (0..rw).map(move |i| Cell::new(levels, i, j))));
+    }
+    while let Some(cell) = stack.pop() {
+        let (i, j) = cell.position();
+        if !tree.is_split(cell.level, i, j) {
+            continue;
+        }
+        let b = if terrain.is_void(cell.level, i, j) {
+            1.0
+        } else {
+            blend_of_ratio(terrain.evaluate(view, rule, cell.level, i, j).ratio)
+        };
+        let nw = tree.nodes(cell.level).0;
+        blends[cell.level as usize - 1][j * nw + i] = b as f32;
+        if cell.level > 1 {
+            let (cw, ch) = tree.nodes(cell.level - 1);
+            for (ci, cj) in [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(a, b)| (2 * i + a, 2 * j + b)) {
+                if ci < cw && cj < ch {
+                    stack.push(Cell::new(cell.level - 1, ci, cj));
+                }
+            }
+        }
+    }
+}
+
+/// `(v_p, b)` of the vertex at (`x`, `y`) born below level `parent`: from the parents'
+/// edge through it, or from the parent it lies inside (`blend(m, i, j)`: a node's blend
+/// factor).
+fn parent_height(
+    terrain: &ViewTerrain<'_>,
+    blend: &impl Fn(u32, usize, usize) -> f64,
     morphed: &[f64],
     x: usize,
     y: usize,
@@ -137,7 +182,7 @@ fn parent_height(
     let (w, h) = (heights.width, heights.height);
     let levels = terrain.levels();
     let at = |x: usize, y: usize| morphed[y * w + x];
-    let blend = |i: usize, j: usize| terrain.blend(view, rule, tree, parent, i, j);
+    let blend = |i: usize, j: usize| blend(parent, i, j);
     let span = 1usize << parent;
     let along = |c: usize, samples: usize| {
         let c0 = c / span * span;

@@ -21,7 +21,7 @@
 //! hanging vertices makes it one crack-free mesh with mixed cell sizes.
 
 use bitvec::prelude::*;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use wavemesh_codec::significance::nodes_along;
 use wavemesh_codec::SignificanceMap;
 
@@ -109,6 +109,8 @@ pub struct NodeView {
     pub margin: f64,
     /// `e · K / τ` (screen-space rule; 0 for the area rule): `ratio = φ · weight / distance`.
     pub weight: f64,
+    /// The box's [`View::frustum_clearance`].
+    pub clearance: f64,
 }
 
 /// Everything the view-dependent mesher reads about one decoded grid, computed once:
@@ -122,6 +124,10 @@ pub struct ViewTerrain<'a> {
     decoder_threshold: f64,
     /// Index `m − 1` for level `m`.
     nodes: Vec<Vec<NodeSummary>>,
+    /// Nodes per row, index `m` for level `m`.
+    widths: Vec<usize>,
+    /// World x/y of sample (0, 0) and the steps of one column and one row.
+    affine: [DVec2; 3],
 }
 
 impl<'a> ViewTerrain<'a> {
@@ -147,6 +153,8 @@ impl<'a> ViewTerrain<'a> {
         let voids = VoidPyramid::new(heights.width, heights.height, levels, valid);
         let errors = ErrorPyramid::new(heights, levels, voids.as_ref());
         let nodes = summarise(heights, valid, levels, &errors, placement.z_scale);
+        let xy = |c: usize, r: usize| DVec2::from_slice(&placement.position(c, r, 0.0)[..2]);
+        let origin = xy(0, 0);
         Ok(ViewTerrain {
             heights,
             map,
@@ -154,6 +162,10 @@ impl<'a> ViewTerrain<'a> {
             placement,
             decoder_threshold: 2f64.powi(decoded_plane.min(1000) as i32),
             nodes,
+            widths: (0..=levels)
+                .map(|m| nodes_along(heights.width, m))
+                .collect(),
+            affine: [origin, xy(1, 0) - origin, xy(0, 1) - origin],
         })
     }
 
@@ -212,18 +224,15 @@ impl<'a> ViewTerrain<'a> {
         let (low, high) = if level == 0 {
             (0.0, 0.0)
         } else {
-            let s = self.nodes[level as usize - 1][j * nodes_along(self.heights.width, level) + i];
+            let s = self.nodes[level as usize - 1][j * self.widths[level as usize] + i];
             (f64::from(s.low), f64::from(s.high))
         };
-        let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].map(|(x, y)| self.world(x, y, 0.0));
-        let (mut lo, mut hi) = (corners[0], corners[0]);
-        for c in &corners[1..] {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-        lo.z = low;
-        hi.z = high;
-        (lo, hi)
+        let [origin, col, row] = self.affine;
+        let (a, b) = (origin + col * x0 as f64, origin + col * x1 as f64);
+        let (c, d) = (row * y0 as f64, row * y1 as f64);
+        let lo = (a + c).min(a + d).min(b + c).min(b + d);
+        let hi = (a + c).max(a + d).max(b + c).max(b + d);
+        (lo.extend(low), hi.extend(high))
     }
 
     /// Node `(level, i, j)` (`level ≥ 1`) under `view` and `rule`.
@@ -232,13 +241,12 @@ impl<'a> ViewTerrain<'a> {
         let (lo, hi) = self.node_box(level, i, j);
         let distance = box_distance(view.camera.eye, lo, hi);
         let margin = 0.5 * lo.distance(hi);
-        let outside = view.outside_distance(lo, hi);
-        let frustum = (1.0 - outside / margin.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        let clearance = view.frustum_clearance(lo, hi);
+        let frustum = (1.0 + clearance.min(0.0) / margin.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
         match rule {
             Rule::ScreenSpace { tau } => {
-                let error = self.nodes[level as usize - 1]
-                    [j * nodes_along(self.heights.width, level) + i]
-                    .error;
+                let error =
+                    self.nodes[level as usize - 1][j * self.widths[level as usize] + i].error;
                 let weight = view.error_pixels(f64::from(error), 1.0) / tau;
                 NodeView {
                     ratio: frustum * weight / distance.max(1e-9),
@@ -246,14 +254,20 @@ impl<'a> ViewTerrain<'a> {
                     frustum,
                     margin,
                     weight,
+                    clearance,
                 }
             }
             Rule::Area { a, b } => NodeView {
-                ratio: frustum * self.area_ratio(view, a, b, level, i, j),
+                ratio: if frustum > 0.0 {
+                    frustum * self.area_ratio(view, a, b, level, i, j)
+                } else {
+                    0.0
+                },
                 distance,
                 frustum,
                 margin,
                 weight: 0.0,
+                clearance,
             },
         }
     }
