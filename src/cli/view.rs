@@ -69,6 +69,9 @@ pub struct ViewOptions {
     /// Multiply heights by this (e.g. 0.1 for decimetre DEMs).
     #[arg(long, default_value_t = 1.0)]
     z_scale: f64,
+    /// Largest side of --render images, pixels.
+    #[arg(long, default_value_t = 768)]
+    render_size: u32,
     /// Refuse streams whose decode needs more memory than this (bytes).
     #[arg(long, default_value_t = 2 << 30)]
     max_memory: u64,
@@ -340,8 +343,11 @@ pub fn view(args: &ViewArgs) -> Result<(), CliError> {
     let frame = make_frame(&terrain, &view, rule, tree, &mut MorphScratch::default());
     write_frame_mesh(&args.output, &loaded, &frame.mesh, &frame.morphed)?;
     if let Some(path) = &args.render {
-        write_png(path, &top_down(&terrain, &frame.mesh, &view, 1024))
-            .map_err(|e| render_error(path, e))?;
+        write_png(
+            path,
+            &top_down(&terrain, &frame.tree, &view, args.options.render_size),
+        )
+        .map_err(|e| render_error(path, e))?;
     }
     let report = ViewReport {
         schema_version: SCHEMA_VERSION,
@@ -656,8 +662,11 @@ fn write_frame_files(
     }
     if let Some(dir) = &args.render {
         let path = dir.join(format!("frame_{index:04}.png"));
-        write_png(&path, &top_down(terrain, &frame.mesh, view, 800))
-            .map_err(|e| render_error(&path, e))?;
+        write_png(
+            &path,
+            &top_down(terrain, &frame.tree, view, args.options.render_size),
+        )
+        .map_err(|e| render_error(&path, e))?;
     }
     Ok(())
 }

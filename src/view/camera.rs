@@ -42,6 +42,10 @@ pub struct View {
     tan_half: DVec2,
     /// Pixels a unit length at distance 1 covers (viewport height / (2 tan(fov/2))).
     pub pixels_per_unit: f64,
+    /// The most pixels a vertical unit length at distance 1 from the eye covers anywhere in
+    /// the view: [`View::pixels_per_unit`] over the cosine of the angle between the view
+    /// axis and the frustum's corner rays (off the axis, depth is less than distance).
+    pub pixels_per_unit_anywhere: f64,
     /// The four side planes and the near plane, inward unit normals through the eye.
     planes: [DVec3; 5],
 }
@@ -110,6 +114,8 @@ impl Camera {
             up,
             tan_half: DVec2::new(tan_h, tan_v),
             pixels_per_unit: h / (2.0 * tan_v),
+            pixels_per_unit_anywhere: h / (2.0 * tan_v)
+                * (1.0 + tan_h * tan_h + tan_v * tan_v).sqrt(),
             planes,
         }
     }
@@ -148,10 +154,18 @@ impl View {
         Some(0.5 * twice.abs())
     }
 
-    /// Pixels a height error `error` (world units) spans seen from `distance` away.
+    /// Pixels a height error `error` (world units) spans at depth `depth` (along the
+    /// view axis).
     #[inline]
-    pub fn error_pixels(&self, error: f64, distance: f64) -> f64 {
-        error * self.pixels_per_unit / distance.max(NEAR)
+    pub fn error_pixels(&self, error: f64, depth: f64) -> f64 {
+        error * self.pixels_per_unit / depth.max(NEAR)
+    }
+
+    /// The most pixels a height error `error` (world units) `distance` away from the eye
+    /// spans anywhere in the view.
+    #[inline]
+    pub fn error_pixels_anywhere(&self, error: f64, distance: f64) -> f64 {
+        error * self.pixels_per_unit_anywhere / distance.max(NEAR)
     }
 
     /// Viewport area, pixels².

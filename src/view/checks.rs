@@ -3,7 +3,7 @@
 //! at a vertex from one frame to the next).
 
 use crate::mesh::cells::{Cell, CellTree};
-use crate::mesh::triangulate::{cell_triangles, centre_rule, Scratch};
+use crate::mesh::triangulate::{cell_triangles, Scratch};
 use crate::mesh::GridMesh;
 
 use super::camera::View;
@@ -43,7 +43,7 @@ impl Surface<'_> {
             return Some(z);
         }
         let cell = leaf_at(terrain, self.tree, x, y)?;
-        let shape = centre_rule(self.tree, terrain.heights(), cell);
+        let shape = terrain.shape(cell);
         let w = self.mesh.width;
         let mut found = None;
         cell_triangles(self.tree, cell, shape, scratch, &mut |t| {

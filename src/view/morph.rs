@@ -226,7 +226,7 @@ fn parent_height(
     let corners = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
     let u = (x - x0) as f64 / (x1 - x0) as f64;
     let v = (y - y0) as f64 / (y1 - y0) as f64;
-    let z = two_triangles(corners, heights.diagonal(bounds), u, v);
+    let z = two_triangles(corners, terrain.diagonal(parent, i, j), u, v);
     (z, blend(i, j))
 }
 

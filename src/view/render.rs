@@ -1,6 +1,7 @@
 //! Frames a person can look at: the terrain from above (hillshade of the true heights),
-//! the view mesh's triangle edges over it, and the camera's position and horizontal field
-//! of view, as a PNG written atomically.
+//! every cell of the view mesh tinted by its size (red finest to blue coarsest) with its
+//! outline where it is large enough to see, and the camera's position and horizontal
+//! field of view, as a PNG written atomically.
 
 use std::path::Path;
 
@@ -11,13 +12,13 @@ use super::camera::View;
 use super::selection::ViewTerrain;
 use super::ViewError;
 use crate::atomic::write_atomic;
-use crate::mesh::GridMesh;
+use crate::mesh::cells::CellTree;
 
-/// Draws `mesh` over `terrain` seen from above, with `view`'s camera, at most `max_side`
-/// pixels a side.
+/// Draws the cells of `tree` over `terrain` seen from above, with `view`'s camera, at
+/// most `max_side` pixels a side.
 pub fn top_down(
     terrain: &ViewTerrain<'_>,
-    mesh: &GridMesh,
+    tree: &CellTree,
     view: &View,
     max_side: u32,
 ) -> RgbImage {
@@ -30,19 +31,54 @@ pub fn top_down(
         (((h - 1) as f64 * scale) as u32).max(1) + 1,
     );
     let mut image = hillshade(terrain, iw, ih, scale);
-    let to_image = |s: u32| {
-        let s = s as usize;
-        DVec2::new((s % w) as f64 * scale, (s / w) as f64 * scale)
-    };
-    let edge = Rgb([200, 40, 40]);
-    for t in &mesh.triangles {
-        let p = t.map(|v| to_image(mesh.vertices[v as usize]));
-        for k in 0..3 {
-            draw_line(&mut image, p[k], p[(k + 1) % 3], edge);
+    let levels = terrain.levels().max(1);
+    for &cell in tree.leaves() {
+        let (x0, y0, x1, y1) = tree.bounds(cell);
+        let corner = |x: usize, y: usize| DVec2::new(x as f64 * scale, y as f64 * scale);
+        let (a, b) = (corner(x0, y0), corner(x1, y1));
+        tint(&mut image, a, b, level_colour(cell.level, levels));
+        if (b.x - a.x).min(b.y - a.y) >= 4.0 {
+            let outline = Rgb([30, 30, 30]);
+            let (c, d) = (DVec2::new(b.x, a.y), DVec2::new(a.x, b.y));
+            for (p, q) in [(a, c), (c, b), (b, d), (d, a)] {
+                draw_line(&mut image, p, q, outline);
+            }
         }
     }
     draw_camera(terrain, &mut image, view, scale);
     image
+}
+
+/// Red for grid cells through yellow and green to blue for the roots.
+fn level_colour(level: u32, levels: u32) -> [f64; 3] {
+    let t = f64::from(level) / f64::from(levels);
+    let stops = [
+        [230.0, 40.0, 40.0],
+        [240.0, 200.0, 40.0],
+        [60.0, 190.0, 80.0],
+        [50.0, 90.0, 230.0],
+    ];
+    let x = t * 3.0;
+    let k = (x.floor() as usize).min(2);
+    let u = x - k as f64;
+    [0, 1, 2].map(|c| stops[k][c] + u * (stops[k + 1][c] - stops[k][c]))
+}
+
+/// Blends `colour` at 45 % over the pixels of the rectangle `a..=b`.
+fn tint(image: &mut RgbImage, a: DVec2, b: DVec2, colour: [f64; 3]) {
+    let (x0, y0) = (a.x.round().max(0.0) as u32, a.y.round().max(0.0) as u32);
+    let (x1, y1) = (
+        (b.x.round() as u32).min(image.width() - 1),
+        (b.y.round() as u32).min(image.height() - 1),
+    );
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let p = image.get_pixel_mut(x, y);
+            for (channel, target) in p.0.iter_mut().zip(colour) {
+                *channel = (0.55 * f64::from(*channel) + 0.45 * target) as u8;
+            }
+        }
+    }
 }
 
 /// Grey hillshade of the true heights, lit from the north-west; nodata in dark blue.

@@ -5,8 +5,9 @@
 //! - **screen-space error** ([`Rule::ScreenSpace`]): `r = φ · e · K / (d · τ)`, where `e` is
 //!   the node's height error from the [`ErrorPyramid`] (its cell drawn as two triangles,
 //!   saturated so that a parent's is at least its children's), `d` the distance from the
-//!   eye to the node's bounding box, `K` the pixels a unit spans at distance 1 and `τ` the
-//!   tolerance in pixels: the node splits when its error projects to more than τ pixels.
+//!   eye to the node's bounding box, `K` the most pixels a unit spans at distance 1
+//!   anywhere in the view and `τ` the tolerance in pixels: the node splits when its error
+//!   may project to more than τ pixels.
 //! - **projected area** ([`Rule::Area`], Yu, Lee & Ra 1997, eq. 4): the node's threshold is
 //!   `T_i = a · (A_n / A_i) + b`, at least the decoder's `T`, with `A_i` the node's
 //!   footprint projected on the view plane and `A_n` the viewport's area (pixels²); the
@@ -29,8 +30,8 @@ use super::camera::{box_distance, View};
 use super::ViewError;
 use crate::mesh::cells::{Cell, CellTree};
 use crate::mesh::export::Placement;
-use crate::mesh::pyramid::{node_bounds, ErrorPyramid, Heights, VoidPyramid};
-use crate::mesh::triangulate::{centre_rule, triangulate};
+use crate::mesh::pyramid::{node_bounds, Diagonal, ErrorPyramid, Heights, Shape, VoidPyramid};
+use crate::mesh::triangulate::triangulate;
 use crate::mesh::GridMesh;
 
 /// How the view sets each node's threshold.
@@ -128,6 +129,8 @@ pub struct ViewTerrain<'a> {
     widths: Vec<usize>,
     /// World x/y of sample (0, 0) and the steps of one column and one row.
     affine: [DVec2; 3],
+    /// Per node, whether it is cut along its rising diagonal (index `m − 1`).
+    rising: Vec<BitVec<u64, Lsb0>>,
 }
 
 impl<'a> ViewTerrain<'a> {
@@ -152,7 +155,8 @@ impl<'a> ViewTerrain<'a> {
         let levels = map.levels();
         let voids = VoidPyramid::new(heights.width, heights.height, levels, valid);
         let errors = ErrorPyramid::new(heights, levels, voids.as_ref());
-        let nodes = summarise(heights, valid, levels, &errors, placement.z_scale);
+        let rising = choose_diagonals(heights, levels);
+        let nodes = summarise(heights, valid, levels, &errors, &rising, placement.z_scale);
         let xy = |c: usize, r: usize| DVec2::from_slice(&placement.position(c, r, 0.0)[..2]);
         let origin = xy(0, 0);
         Ok(ViewTerrain {
@@ -166,6 +170,7 @@ impl<'a> ViewTerrain<'a> {
                 .map(|m| nodes_along(heights.width, m))
                 .collect(),
             affine: [origin, xy(1, 0) - origin, xy(0, 1) - origin],
+            rising,
         })
     }
 
@@ -247,7 +252,7 @@ impl<'a> ViewTerrain<'a> {
             Rule::ScreenSpace { tau } => {
                 let error =
                     self.nodes[level as usize - 1][j * self.widths[level as usize] + i].error;
-                let weight = view.error_pixels(f64::from(error), 1.0) / tau;
+                let weight = view.error_pixels_anywhere(f64::from(error), 1.0) / tau;
                 NodeView {
                     ratio: frustum * weight / distance.max(1e-9),
                     distance,
@@ -325,11 +330,31 @@ impl<'a> ViewTerrain<'a> {
         })
     }
 
-    /// The triangles of a selection (every cell as two triangles along the diagonal
-    /// through its centre sample's ridge or valley, plus its hanging vertices).
+    /// The diagonal node `(level, i, j)` (`level ≥ 1`) is cut along.
+    #[inline]
+    pub fn diagonal(&self, level: u32, i: usize, j: usize) -> Diagonal {
+        if self.rising[level as usize - 1][j * self.widths[level as usize] + i] {
+            Diagonal::Rising
+        } else {
+            Diagonal::Falling
+        }
+    }
+
+    /// How leaf `cell` is drawn: two triangles along its diagonal.
+    #[inline]
+    pub fn shape(&self, cell: Cell) -> Shape {
+        if cell.level == 0 {
+            Shape::Two(Diagonal::Falling)
+        } else {
+            let (i, j) = cell.position();
+            Shape::Two(self.diagonal(cell.level, i, j))
+        }
+    }
+
+    /// The triangles of a selection (every cell as two triangles along its diagonal, plus
+    /// its hanging vertices).
     pub fn triangulate(&self, tree: &CellTree) -> GridMesh {
-        let heights = self.heights;
-        triangulate(tree, heights, |cell: Cell| centre_rule(tree, heights, cell))
+        triangulate(tree, self.heights, |cell: Cell| self.shape(cell))
     }
 }
 
@@ -341,6 +366,7 @@ fn summarise(
     valid: &BitSlice<u64, Lsb0>,
     levels: u32,
     errors: &ErrorPyramid,
+    rising: &[BitVec<u64, Lsb0>],
     z_scale: f64,
 ) -> Vec<Vec<NodeSummary>> {
     let (w, h) = (heights.width, heights.height);
@@ -351,7 +377,11 @@ fn summarise(
         for j in 0..nh {
             for i in 0..nw {
                 let bounds = node_bounds(w, h, m, i, j);
-                let diagonal = heights.diagonal(bounds);
+                let diagonal = if rising[m as usize - 1][j * nw + i] {
+                    Diagonal::Rising
+                } else {
+                    Diagonal::Falling
+                };
                 let own = errors.two_triangle_error(m, i, j, diagonal);
                 let mut s = NodeSummary {
                     low: f32::INFINITY,
@@ -396,6 +426,42 @@ fn summarise(
         let (a, b) = (s.low * scale, s.high * scale);
         (s.low, s.high) = (a.min(b), a.max(b));
         s.error *= scale.abs();
+    }
+    out
+}
+
+/// Per node of levels `1..=levels` (index `m − 1`), whether it is cut along its rising
+/// diagonal. The children its parent's diagonal crosses take the parent's, so that a
+/// node's children, fresh from a split and still at their coarse heights, lie exactly on
+/// the surface the node drew (no pop from a flipped diagonal); the others, and the roots,
+/// take the diagonal through their centre sample's ridge or valley.
+fn choose_diagonals(heights: Heights<'_>, levels: u32) -> Vec<BitVec<u64, Lsb0>> {
+    let (w, h) = (heights.width, heights.height);
+    let mut out: Vec<BitVec<u64, Lsb0>> = vec![BitVec::new(); levels as usize];
+    for m in (1..=levels).rev() {
+        let (nw, nh) = (nodes_along(w, m), nodes_along(h, m));
+        let mut level = bitvec![u64, Lsb0; 0; nw * nh];
+        for j in 0..nh {
+            for i in 0..nw {
+                let own = heights.diagonal(node_bounds(w, h, m, i, j)) == Diagonal::Rising;
+                let rising = if m == levels {
+                    own
+                } else {
+                    let parent = &out[m as usize];
+                    let parent_rising = parent[(j / 2) * nodes_along(w, m + 1) + i / 2];
+                    // Falling crosses the top-left and bottom-right children; rising the
+                    // other two.
+                    let crossed = (i % 2 == j % 2) != parent_rising;
+                    if crossed {
+                        parent_rising
+                    } else {
+                        own
+                    }
+                };
+                level.set(j * nw + i, rising);
+            }
+        }
+        out[m as usize - 1] = level;
     }
     out
 }
