@@ -195,11 +195,6 @@ impl<'a> ViewTerrain<'a> {
         self.voids.as_ref().is_some_and(|v| v.is_void(level, i, j))
     }
 
-    /// The void pyramid (`None` without nodata).
-    pub fn voids(&self) -> Option<&VoidPyramid> {
-        self.voids.as_ref()
-    }
-
     /// World position of sample (`col`, `row`) at height `h` (data units).
     #[inline]
     pub fn world(&self, col: usize, row: usize, h: f64) -> DVec3 {
@@ -299,27 +294,6 @@ impl<'a> ViewTerrain<'a> {
     #[inline]
     pub fn splits(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> bool {
         rule.splits(self.evaluate(view, rule, level, i, j).ratio)
-    }
-
-    /// The blend factor of node `(level, i, j)` in `tree`: 0 unless it split, 1 for void
-    /// nodes, else from its ratio.
-    #[inline]
-    pub fn blend(
-        &self,
-        view: &View,
-        rule: Rule,
-        tree: &CellTree,
-        level: u32,
-        i: usize,
-        j: usize,
-    ) -> f64 {
-        if !tree.is_split(level, i, j) {
-            0.0
-        } else if self.is_void(level, i, j) {
-            1.0
-        } else {
-            blend_of_ratio(self.evaluate(view, rule, level, i, j).ratio)
-        }
     }
 
     /// The selection for `view` from the roots down.
