@@ -13,7 +13,7 @@ use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
 use wavemesh::mesh::GridMesh;
 use wavemesh::view::camera::{Camera, View};
 use wavemesh::view::checks::{count_cracks, max_jump, Surface as FrameSurface};
-use wavemesh::view::compare::{area_rule_matching, screen_error, ScreenError};
+use wavemesh::view::compare::{area_rule_matching, screen_error, sse_rule_matching, ScreenError};
 use wavemesh::view::incremental::Incremental;
 use wavemesh::view::morph::{morph, MorphScratch};
 use wavemesh::view::render::{top_down, write_png};
@@ -404,38 +404,6 @@ fn other_rule(
         triangles: mesh.triangles.len(),
         screen_error: screen_error(terrain, view, &mesh, &morphed),
     }
-}
-
-/// The screen-space rule whose mesh has the triangle count closest to `triangles`.
-fn sse_rule_matching(
-    terrain: &ViewTerrain<'_>,
-    view: &View,
-    triangles: usize,
-) -> (Rule, CellTree, GridMesh) {
-    let build = |log_tau: f64| {
-        let rule = Rule::ScreenSpace {
-            tau: 10f64.powf(log_tau),
-        };
-        let tree = terrain.select(view, rule);
-        let mesh = terrain.triangulate(&tree);
-        (rule, tree, mesh)
-    };
-    let (mut lo, mut hi) = (-3.0f64, 6.0f64);
-    let mut best = build(hi);
-    for _ in 0..30 {
-        let mid = 0.5 * (lo + hi);
-        let candidate = build(mid);
-        let count = candidate.2.triangles.len();
-        if count > triangles {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if count.abs_diff(triangles) < best.2.triangles.len().abs_diff(triangles) {
-            best = candidate;
-        }
-    }
-    best
 }
 
 fn print_view(report: &ViewReport, json: bool) {

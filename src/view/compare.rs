@@ -102,3 +102,36 @@ pub fn area_rule_matching(
     }
     best
 }
+
+/// The screen-space rule whose mesh under `view` has the triangle count closest to
+/// `triangles`, searched over τ (fewer triangles as τ grows); with its selection and mesh.
+pub fn sse_rule_matching(
+    terrain: &ViewTerrain<'_>,
+    view: &View,
+    triangles: usize,
+) -> (Rule, CellTree, GridMesh) {
+    let build = |log_tau: f64| {
+        let rule = Rule::ScreenSpace {
+            tau: 10f64.powf(log_tau),
+        };
+        let tree = terrain.select(view, rule);
+        let mesh = terrain.triangulate(&tree);
+        (rule, tree, mesh)
+    };
+    let (mut lo, mut hi) = (-3.0f64, 6.0f64);
+    let mut best = build(hi);
+    for _ in 0..30 {
+        let mid = 0.5 * (lo + hi);
+        let candidate = build(mid);
+        let count = candidate.2.triangles.len();
+        if count > triangles {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if count.abs_diff(triangles) < best.2.triangles.len().abs_diff(triangles) {
+            best = candidate;
+        }
+    }
+    best
+}
