@@ -1,7 +1,7 @@
 //! View-dependent terrain per frame on a synthetic 4097 × 4097 terrain (eight octaves of
 //! rotated sine ridges plus noise, 0..~3000 m, one lossless 5/3 stream decoded once with
 //! its significance map), a 1600 × 900 viewport, 60° field of view and τ = 1 pixel, the
-//! camera 400 m above the terrain looking ahead and down:
+//! camera at 3400 m (about 1000 m above the highest ridge) looking ahead and down:
 //!
 //! * **select from scratch**: [`ViewTerrain::select`] (the rebuild);
 //! * **incremental update**: [`Incremental::update`] on a smooth flight (the camera moves
