@@ -495,7 +495,8 @@ pub fn flythrough(args: &FlythroughArgs) -> Result<(), CliError> {
     let prepare_seconds = start.elapsed().as_secs_f64();
     let cameras = match path {
         Some(rows) => resample(&rows, args.frames.unwrap_or(rows.len())),
-        None => orbit(&terrain, args.frames.unwrap_or(60)),
+        None => orbit(&terrain, args.frames.unwrap_or(60))
+            .ok_or_else(|| CliError::Input(args.input.clone(), "no grid cell to orbit".into()))?,
     };
     let views = cameras
         .iter()
@@ -691,13 +692,16 @@ fn resample(rows: &[(DVec3, DVec3)], frames: usize) -> Vec<(DVec3, DVec3)> {
 }
 
 /// A full circle around the terrain's centre, above its highest point, looking at the
-/// centre.
-fn orbit(terrain: &ViewTerrain<'_>, frames: usize) -> Vec<(DVec3, DVec3)> {
+/// centre (`None` for a grid without cells).
+fn orbit(terrain: &ViewTerrain<'_>, frames: usize) -> Option<Vec<(DVec3, DVec3)>> {
     let (lo, hi) = terrain.extent();
+    if !(lo.is_finite() && hi.is_finite()) {
+        return None;
+    }
     let centre = 0.5 * (lo + hi);
     let size = (hi.x - lo.x).max(hi.y - lo.y);
     let radius = 0.6 * size;
-    (0..frames)
+    let cameras = (0..frames)
         .map(|f| {
             let angle = std::f64::consts::TAU * f as f64 / frames as f64;
             let eye = DVec3::new(
@@ -707,7 +711,8 @@ fn orbit(terrain: &ViewTerrain<'_>, frames: usize) -> Vec<(DVec3, DVec3)> {
             );
             (eye, centre)
         })
-        .collect()
+        .collect();
+    Some(cameras)
 }
 
 fn median(mut values: Vec<f64>) -> f64 {
