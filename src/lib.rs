@@ -11,3 +11,4 @@ pub mod mesh;
 pub mod metrics;
 pub mod report;
 pub mod synth;
+pub mod view;

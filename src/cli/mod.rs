@@ -7,6 +7,7 @@ mod metadata_report;
 mod report;
 mod synth;
 mod verify;
+mod view;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -45,6 +46,10 @@ enum Command {
     Report(report::ReportArgs),
     /// Write a fractal test DEM of any size as a GeoTIFF, strip by strip.
     Synth(synth::SynthArgs),
+    /// One view-dependent mesh of a .ezw stream for a camera (geomorphed, crack-free).
+    View(view::ViewArgs),
+    /// A camera path over a .ezw stream: incremental split/merge, geomorphing, popping.
+    Flythrough(view::FlythroughArgs),
 }
 
 /// Wavelet choice on the command line.
@@ -279,6 +284,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
         Command::Synth(args) => synth::run(&args),
+        Command::View(args) => view::view(&args),
+        Command::Flythrough(args) => view::flythrough(&args),
     }
 }
 

@@ -231,6 +231,28 @@ impl CellTree {
         }
     }
 
+    /// Sets or clears the split bit of node `cell` (`level ≥ 1`) without touching the
+    /// leaves: for callers that maintain the leaves themselves (view-dependent
+    /// split/merge).
+    pub fn set_split(&mut self, cell: Cell, split: bool) {
+        if cell.level > 0 {
+            let (i, j) = cell.position();
+            let k = self.node_index(cell.level, i, j);
+            let word = &mut self.split[cell.level as usize - 1][k / 64];
+            if split {
+                *word |= 1 << (k % 64);
+            } else {
+                *word &= !(1 << (k % 64));
+            }
+        }
+    }
+
+    /// Exchanges the leaves with `leaves` (which must be the leaves of the split bits, in
+    /// depth-first order, once the caller is done): the two buffers of a ping-pong update.
+    pub fn swap_leaves(&mut self, leaves: &mut Vec<Cell>) {
+        std::mem::swap(&mut self.leaves, leaves);
+    }
+
     /// What lies across `side` of leaf `cell`.
     pub fn across(&self, cell: Cell, side: Side) -> Across {
         let Some((ni, nj)) = self.neighbour(cell, side) else {

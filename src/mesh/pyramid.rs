@@ -465,6 +465,16 @@ impl ErrorPyramid {
         f64::from(self.errors(level, i, j).fan[side][0]) > tolerance
     }
 
+    /// The error of node `(level, i, j)` drawn as two triangles along `diagonal`
+    /// (`level ≥ 1`; infinite for void nodes).
+    #[inline]
+    pub fn two_triangle_error(&self, level: u32, i: usize, j: usize, diagonal: Diagonal) -> f32 {
+        self.errors(level, i, j).two[match diagonal {
+            Diagonal::Falling => 0,
+            Diagonal::Rising => 1,
+        }]
+    }
+
     #[inline]
     fn errors(&self, level: u32, i: usize, j: usize) -> NodeErrors {
         let nw = nodes_along(self.width, level);

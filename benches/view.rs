@@ -1,0 +1,134 @@
+//! View-dependent terrain per frame on a synthetic 4097 × 4097 terrain (eight octaves of
+//! rotated sine ridges plus noise, 0..~3000 m, one lossless 5/3 stream decoded once with
+//! its significance map), a 1600 × 900 viewport, 60° field of view and τ = 1 pixel, the
+//! camera at 3400 m (about 1000 m above the highest ridge) looking ahead and down:
+//!
+//! * **select from scratch**: [`ViewTerrain::select`] (the rebuild);
+//! * **incremental update**: [`Incremental::update`] on a smooth flight (the camera moves
+//!   1 m and turns 0.05° a frame, back and forth between two cameras);
+//! * **morph**: [`morph`] of the selection's mesh;
+//! * **triangulate**: the selection's triangles (hanging vertices included).
+//!
+//! Selection plus morphing a frame is incremental update + morph (+ triangulate to get
+//! the mesh the morph reads). Run:
+//!
+//! ```text
+//! CARGO_TARGET_DIR=/work/target-bench cargo bench --bench view -- --warm-up-time 1 --measurement-time 3
+//! ```
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use bitvec::prelude::*;
+use criterion::{criterion_group, criterion_main, Criterion};
+use glam::DVec3;
+use wavemesh::lod::Surface;
+use wavemesh::mesh::export::Placement;
+use wavemesh::view::camera::{Camera, View};
+use wavemesh::view::incremental::Incremental;
+use wavemesh::view::morph::{morph, MorphScratch};
+use wavemesh::view::selection::{Rule, ViewTerrain};
+use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
+
+const SIDE: usize = 4097;
+
+/// Eight octaves of sine ridges in random directions (amplitude halving, frequency
+/// doubling) plus ±2 m of noise, in metres as i16.
+fn synthetic_terrain(side: usize) -> Raster {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut random = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let octaves: Vec<(f64, f64, f64, f64)> = (0..8)
+        .map(|k| {
+            let angle = random() * std::f64::consts::TAU;
+            let frequency = 2f64.powi(k) * std::f64::consts::TAU / side as f64 * 1.5;
+            (
+                angle.cos() * frequency,
+                angle.sin() * frequency,
+                random() * 6.3,
+                1200.0 / 2f64.powi(k),
+            )
+        })
+        .collect();
+    let values = (0..side * side)
+        .map(|s| {
+            let (x, y) = ((s % side) as f64, (s / side) as f64);
+            let ridges: f64 = octaves
+                .iter()
+                .map(|&(fx, fy, phase, amplitude)| {
+                    amplitude * (1.0 - (x * fx + y * fy + phase).sin().abs())
+                })
+                .sum();
+            (ridges + 4.0 * random() - 2.0) as i16
+        })
+        .collect();
+    Raster::new(side, side, Samples::I16(values)).expect("valid raster")
+}
+
+/// A camera at step `k` of a smooth flight across the terrain.
+fn camera(k: f64) -> View {
+    let eye = DVec3::new(600.0 + k, 1200.0 + 0.3 * k, 3400.0);
+    let heading = 0.5 + k * 0.05f64.to_radians();
+    let look = eye + DVec3::new(heading.cos() * 2000.0, heading.sin() * 2000.0, -1500.0);
+    Camera::new(eye, look, 60.0, (1600, 900))
+        .expect("valid camera")
+        .view()
+}
+
+fn bench_view(c: &mut Criterion) {
+    let start = Instant::now();
+    let raster = synthetic_terrain(SIDE);
+    let stream = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).expect("encodes");
+    let options = DecodeOptions {
+        significance_map: true,
+        ..DecodeOptions::default()
+    };
+    let decoded = decode(&stream.bytes, &options).expect("decodes");
+    let surface = Surface::of(&decoded.raster);
+    let map = decoded.significance.as_ref().expect("map");
+    let valid: BitVec<u64, Lsb0> = surface.valid.clone();
+    let terrain = ViewTerrain::new(map, surface.heights(), &valid, Placement::pixel(1.0), 0)
+        .expect("sizes agree");
+    eprintln!(
+        "setup (encode, decode, summaries): {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+    let rule = Rule::ScreenSpace { tau: 1.0 };
+    let (a, b) = (camera(0.0), camera(1.0));
+    let tree = terrain.select(&a, rule);
+    let mesh = terrain.triangulate(&tree);
+    eprintln!(
+        "frame: {} cells, {} triangles, {} vertices",
+        tree.leaves().len(),
+        mesh.triangles.len(),
+        mesh.vertices.len()
+    );
+    let mut group = c.benchmark_group("view 4097² 1600×900 τ=1");
+    group.sample_size(10);
+    group.bench_function("select from scratch", |bench| {
+        bench.iter(|| black_box(terrain.select(black_box(&a), rule)))
+    });
+    let mut incremental = Incremental::new(&terrain, &a, rule);
+    let mut flip = false;
+    group.bench_function("incremental update (smooth flight)", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            black_box(incremental.update(&terrain, if flip { &b } else { &a }))
+        })
+    });
+    group.bench_function("triangulate", |bench| {
+        bench.iter(|| black_box(terrain.triangulate(&tree)))
+    });
+    let mut scratch = MorphScratch::default();
+    group.bench_function("morph", |bench| {
+        bench.iter(|| black_box(morph(&terrain, &a, rule, &tree, &mesh, &mut scratch)))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_view);
+criterion_main!(benches);
