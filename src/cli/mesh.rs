@@ -14,7 +14,9 @@ use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
+use super::meshers::{mesh_direct, MethodArg};
 use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use wavemesh::meshers;
 
 /// Which coefficients split a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -146,6 +148,17 @@ impl MeshOptions {
             MeshTarget::Plane(threshold_plane.unwrap_or(decoded_plane)),
             None,
         ))
+    }
+
+    /// The budget of a mesh built straight from the heights (`--method` other than
+    /// zerotree): `--triangles`, else `--mesh-error`, else 1 % of the grid's triangles.
+    fn direct_budget(&self, samples: usize) -> Result<meshers::Budget, CliError> {
+        self.target(0)?;
+        Ok(match (self.triangles, self.mesh_error) {
+            (Some(n), _) => meshers::Budget::Triangles(n),
+            (None, Some(e)) => meshers::Budget::MaxError(e),
+            (None, None) => meshers::Budget::Triangles((samples / 50).max(2)),
+        })
     }
 
     fn placement(&self, raster: &Raster) -> Placement {
@@ -333,6 +346,10 @@ pub struct MeshArgs {
     max_memory: u64,
     #[command(flatten)]
     mesh: MeshOptions,
+    /// Which mesher: the zerotree (after an encode and decode) or one straight from the
+    /// heights.
+    #[arg(long, value_enum, default_value = "zerotree")]
+    method: MethodArg,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -364,6 +381,12 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     let raster = args.input_args.read(&args.input)?;
     args.mesh
         .check(&args.output, raster.len() as u64, args.max_memory)?;
+    if args.method != MethodArg::Zerotree {
+        let budget = args.mesh.direct_budget(raster.len())?;
+        let placement = args.mesh.placement(&raster);
+        let paths = (args.input.as_path(), args.output.as_path());
+        return mesh_direct(args.method, &raster, budget, &placement, paths, args.json);
+    }
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
             Some((bpp * raster.len() as f64 / 8.0).floor() as u64)

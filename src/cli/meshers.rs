@@ -1,0 +1,226 @@
+//! `mesh --method greedy|delaunay` (meshes straight from the DEM) and `compare-meshers`
+//! (every mesher at the same triangle budgets, as a table, JSON and a log–log plot).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::ValueEnum;
+use serde::Serialize;
+use wavemesh::lod::Surface;
+use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
+use wavemesh::mesh::rasterise::{mesh_error, MeshError};
+use wavemesh::meshers::{self, Budget, MeshRow, Method};
+use wavemesh_codec::Raster;
+
+use super::coding::SCHEMA_VERSION;
+use super::{with_progress, CliError, InputArgs};
+
+/// Which mesher `mesh` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Quadtree cells from the zerotree (free with a decode).
+    Zerotree,
+    /// Greedy insertion with Delaunay flips, then flips that lower the squared error.
+    Greedy,
+    /// Greedy insertion with Delaunay flips only (Delatin's algorithm).
+    Delaunay,
+}
+
+impl MethodArg {
+    fn method(self) -> Method {
+        match self {
+            MethodArg::Zerotree => Method::Zerotree,
+            MethodArg::Greedy => Method::Greedy,
+            MethodArg::Delaunay => Method::Delaunay,
+        }
+    }
+}
+
+/// The report of `mesh --method greedy|delaunay`.
+#[derive(Debug, Serialize)]
+struct DirectMeshReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    method: &'static str,
+    input: &'a Path,
+    output: &'a Path,
+    width: usize,
+    height: usize,
+    triangles: usize,
+    vertices: usize,
+    error: MeshError,
+    mesh_seconds: f64,
+    mesh_peak_heap_bytes: usize,
+}
+
+/// Meshes `raster` with `method` straight from its heights (no stream) and writes it.
+pub fn mesh_direct(
+    method: MethodArg,
+    raster: &Raster,
+    budget: Budget,
+    placement: &Placement,
+    (input, output): (&Path, &Path),
+    json: bool,
+) -> Result<(), CliError> {
+    let format = MeshFormat::from_path(output)
+        .ok_or_else(|| CliError::Usage(format!("{}: unknown mesh format", output.display())))?;
+    let surface = Surface::of(raster);
+    let start = Instant::now();
+    let (mesh, peak) = with_progress("meshing", || {
+        wavemesh::memory::measure(|| meshers::build(method.method(), raster, &surface, budget))
+    });
+    let mesh_seconds = start.elapsed().as_secs_f64();
+    let mesh = mesh.map_err(|e| CliError::Input(input.to_path_buf(), e.to_string()))?;
+    write_mesh(output, &mesh, &surface.heights, placement, format)
+        .map_err(|e| CliError::Output(output.to_path_buf(), e.to_string()))?;
+    let report = DirectMeshReport {
+        schema_version: SCHEMA_VERSION,
+        command: "mesh",
+        method: method.method().name(),
+        input,
+        output,
+        width: raster.width,
+        height: raster.height,
+        triangles: mesh.triangles.len(),
+        vertices: mesh.vertices.len(),
+        error: mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid),
+        mesh_seconds,
+        mesh_peak_heap_bytes: peak,
+    };
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("reports serialise")
+        );
+    } else {
+        println!(
+            "mesh {} ({}, {}): {} triangles, {} vertices, {:.3} s\n  RMSE {:.4}  max error {:.4}",
+            output.display(),
+            format.name(),
+            report.method,
+            report.triangles,
+            report.vertices,
+            mesh_seconds,
+            report.error.rmse,
+            report.error.max_error
+        );
+    }
+    Ok(())
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CompareArgs {
+    /// Input DEM.
+    input: PathBuf,
+    /// Comma-separated triangle budgets.
+    #[arg(long, value_delimiter = ',', required = true)]
+    triangles: Vec<usize>,
+    /// Only this window of the DEM: column, row, width, height.
+    #[arg(long, value_delimiter = ',', value_name = "X0,Y0,W,H")]
+    window: Option<Vec<usize>>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Write a log–log SVG of RMSE against triangles here.
+    #[arg(long, value_name = "SVG")]
+    plot: Option<PathBuf>,
+    #[command(flatten)]
+    input_args: InputArgs,
+}
+
+#[derive(Serialize)]
+struct CompareReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    width: usize,
+    height: usize,
+    rows: &'a [MeshRow],
+    skipped: Vec<Skipped>,
+}
+
+#[derive(Serialize)]
+struct Skipped {
+    method: Method,
+    reason: String,
+}
+
+pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
+    if args.triangles.contains(&0) {
+        return Err(CliError::Usage("--triangles must be positive".into()));
+    }
+    let mut raster = args.input_args.read(&args.input)?;
+    if let Some(w) = &args.window {
+        if w.len() != 4 {
+            return Err(CliError::Usage("--window takes X0,Y0,W,H".into()));
+        }
+        raster = meshers::window(&raster, w[0], w[1], w[2], w[3]).ok_or_else(|| {
+            CliError::Usage(format!(
+                "--window {},{},{},{} is not inside the {}x{} DEM",
+                w[0], w[1], w[2], w[3], raster.width, raster.height
+            ))
+        })?;
+    }
+    let (rows, skipped) = with_progress("meshing", || {
+        meshers::compare(&raster, &Method::ALL, &args.triangles)
+    });
+    if let Some(path) = &args.plot {
+        let title = format!(
+            "{} ({}x{})",
+            args.input.display(),
+            raster.width,
+            raster.height
+        );
+        let svg = meshers::error_plot_svg(&rows, &title)
+            .map_err(|e| CliError::Output(path.clone(), e.to_string()))?;
+        wavemesh::atomic::write_atomic(path, |w| w.write_all(svg.as_bytes()))
+            .map_err(|e| CliError::Output(path.clone(), e.to_string()))?;
+    }
+    let skipped: Vec<Skipped> = skipped
+        .into_iter()
+        .map(|(method, reason)| Skipped { method, reason })
+        .collect();
+    if args.json {
+        let report = CompareReport {
+            schema_version: SCHEMA_VERSION,
+            command: "compare-meshers",
+            input: &args.input,
+            width: raster.width,
+            height: raster.height,
+            rows: &rows,
+            skipped,
+        };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("reports serialise")
+        );
+    } else {
+        print!("{}", markdown(&rows));
+        for s in &skipped {
+            println!("{}: skipped ({})", s.method.name(), s.reason);
+        }
+    }
+    Ok(())
+}
+
+/// The rows as a Markdown table.
+fn markdown(rows: &[MeshRow]) -> String {
+    let mut s = String::from(
+        "| mesher | budget | triangles | vertices | RMSE | max error | uncovered | build s | peak heap MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.3} | {:.1} |\n",
+            r.method.name(),
+            r.budget,
+            r.triangles,
+            r.vertices,
+            r.rmse,
+            r.max_error,
+            r.uncovered,
+            r.build_seconds,
+            r.peak_heap_bytes as f64 / 1e6
+        ));
+    }
+    s
+}
