@@ -61,7 +61,8 @@ impl Method {
 }
 
 /// What a mesh is asked to meet.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Budget {
     /// At most this many triangles.
     Triangles(usize),
@@ -91,8 +92,8 @@ pub enum MeshersError {
 pub struct MeshRow {
     /// The mesher.
     pub method: Method,
-    /// The triangle budget asked for.
-    pub budget: usize,
+    /// What was asked for.
+    pub budget: Budget,
     /// Triangles of the mesh.
     pub triangles: usize,
     /// Vertices of the mesh.
@@ -250,22 +251,21 @@ fn peer_within(method: Method, surface: &Surface, n: usize) -> Result<GridMesh, 
     Ok(best)
 }
 
-/// Builds and measures `method`'s mesh of `raster` (heights `surface`) within `n`
-/// triangles.
+/// Builds and measures `method`'s mesh of `raster` (heights `surface`) meeting `budget`.
 pub fn measure(
     method: Method,
     raster: &Raster,
     surface: &Surface,
-    n: usize,
+    budget: Budget,
 ) -> Result<MeshRow, MeshersError> {
     let start = Instant::now();
-    let (mesh, peak) = memory::measure(|| build(method, raster, surface, Budget::Triangles(n)));
+    let (mesh, peak) = memory::measure(|| build(method, raster, surface, budget));
     let build_seconds = start.elapsed().as_secs_f64();
     let mesh = mesh?;
     let error = mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid);
     Ok(MeshRow {
         method,
-        budget: n,
+        budget,
         triangles: mesh.triangles.len(),
         vertices: mesh.vertices.len(),
         rmse: error.rmse,
@@ -281,7 +281,7 @@ pub fn measure(
 pub fn compare(
     raster: &Raster,
     methods: &[Method],
-    budgets: &[usize],
+    budgets: &[Budget],
 ) -> (Vec<MeshRow>, Vec<(Method, String)>) {
     let surface = Surface::of(raster);
     let mut rows = Vec::new();

@@ -108,13 +108,47 @@ pub fn mesh_direct(
     Ok(())
 }
 
+/// A mesher of the comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodName {
+    /// The zerotree mesher.
+    Zerotree,
+    /// Greedy insertion with data-dependent flips.
+    Greedy,
+    /// Greedy insertion with Delaunay flips only.
+    Delaunay,
+    /// The delatin crate.
+    Delatin,
+    /// The martini crate.
+    Martini,
+}
+
+impl From<MethodName> for Method {
+    fn from(m: MethodName) -> Method {
+        match m {
+            MethodName::Zerotree => Method::Zerotree,
+            MethodName::Greedy => Method::Greedy,
+            MethodName::Delaunay => Method::Delaunay,
+            MethodName::Delatin => Method::Delatin,
+            MethodName::Martini => Method::Martini,
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct CompareArgs {
     /// Input DEM.
     input: PathBuf,
     /// Comma-separated triangle budgets.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, value_delimiter = ',', required_unless_present = "mesh_errors")]
     triangles: Vec<usize>,
+    /// Comma-separated height tolerances (data units): also the mesh of each method
+    /// within each (Martini and Delatin at their max-error parameter).
+    #[arg(long, value_delimiter = ',', value_name = "E")]
+    mesh_errors: Vec<f64>,
+    /// Comma-separated methods (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<MethodName>,
     /// Only this window of the DEM: column, row, width, height.
     #[arg(long, value_delimiter = ',', value_name = "X0,Y0,W,H")]
     window: Option<Vec<usize>>,
@@ -149,6 +183,26 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     if args.triangles.contains(&0) {
         return Err(CliError::Usage("--triangles must be positive".into()));
     }
+    if let Some(e) = args
+        .mesh_errors
+        .iter()
+        .find(|e| !(e.is_finite() && **e >= 0.0))
+    {
+        return Err(CliError::Usage(format!(
+            "--mesh-errors must be non-negative numbers, got {e}"
+        )));
+    }
+    let budgets: Vec<Budget> = args
+        .triangles
+        .iter()
+        .map(|&n| Budget::Triangles(n))
+        .chain(args.mesh_errors.iter().map(|&e| Budget::MaxError(e)))
+        .collect();
+    let methods: Vec<Method> = if args.methods.is_empty() {
+        Method::ALL.to_vec()
+    } else {
+        args.methods.iter().map(|&m| m.into()).collect()
+    };
     let mut raster = args.input_args.read(&args.input)?;
     if let Some(w) = &args.window {
         if w.len() != 4 {
@@ -161,9 +215,8 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             ))
         })?;
     }
-    let (rows, skipped) = with_progress("meshing", || {
-        meshers::compare(&raster, &Method::ALL, &args.triangles)
-    });
+    let (rows, skipped) =
+        with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));
     if let Some(path) = &args.plot {
         let title = format!(
             "{} ({}x{})",
@@ -212,7 +265,10 @@ fn markdown(rows: &[MeshRow]) -> String {
         s.push_str(&format!(
             "| {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.3} | {:.1} |\n",
             r.method.name(),
-            r.budget,
+            match r.budget {
+                Budget::Triangles(n) => format!("{n} triangles"),
+                Budget::MaxError(e) => format!("error {e}"),
+            },
             r.triangles,
             r.vertices,
             r.rmse,

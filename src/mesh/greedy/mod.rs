@@ -71,6 +71,10 @@ pub struct GreedyMesher<'a> {
     queue: BinaryHeap<Entry>,
     /// Triangles rewritten by the current insertion (to assess again).
     touched: Vec<u32>,
+    /// Triangles with at most this error are never split, so never queued.
+    settled: f64,
+    /// Whether a triangle over a tolerance first tries a flip that brings it within.
+    resolving_flips: bool,
 }
 
 impl<'a> GreedyMesher<'a> {
@@ -96,9 +100,18 @@ impl<'a> GreedyMesher<'a> {
             versions: Vec::new(),
             queue: BinaryHeap::new(),
             touched: vec![0, 1],
+            settled: 0.0,
+            resolving_flips: false,
         };
         mesher.assess_touched();
         Ok(mesher)
+    }
+
+    /// Before inserting into a triangle over a tolerance, try flipping one of its sides
+    /// so that both triangles the flip makes are within it (no vertex needed there).
+    pub fn with_resolving_flips(mut self) -> GreedyMesher<'a> {
+        self.resolving_flips = true;
+        self
     }
 
     /// Triangles of the triangulation so far (those over nodata included).
@@ -108,6 +121,10 @@ impl<'a> GreedyMesher<'a> {
 
     /// Inserts vertices until `target` is met (or nothing is left to insert).
     pub fn run(&mut self, target: GreedyTarget) {
+        if let GreedyTarget::MaxError(e) = target {
+            // Queued triangles within the tolerance stay; new ones are not queued.
+            self.settled = self.settled.max(e);
+        }
         while let Some(worst) = self.worst() {
             let error = self.assessments[worst as usize].error;
             let done = match target {
@@ -119,6 +136,11 @@ impl<'a> GreedyMesher<'a> {
             if done {
                 return;
             }
+            if let (GreedyTarget::MaxError(e), true) = (target, self.resolving_flips) {
+                if self.resolving_flip(worst, e) {
+                    continue;
+                }
+            }
             self.insert(worst);
         }
     }
@@ -127,8 +149,10 @@ impl<'a> GreedyMesher<'a> {
     /// it when the other diagonal of its (convex) quadrilateral has a smaller squared
     /// error and a largest error no worse than `limit` (or than the current diagonal's
     /// when `limit` is `None`); stops after a pass without flips or `passes` passes.
-    /// Returns the flips made.
-    pub fn optimise_flips(&mut self, limit: Option<f64>, passes: usize) -> usize {
+    /// Returns the mesh and the flips made. The flipped triangles are not assessed
+    /// again (they cover no nodata, as the quadrilaterals they come from), so this ends
+    /// the insertion.
+    pub fn optimise_flips(mut self, limit: Option<f64>, passes: usize) -> (GridMesh, usize) {
         let mut cache: Vec<(f64, f64)> = vec![(f64::NAN, 0.0); self.triangle_count()];
         let mut flips = 0;
         for _ in 0..passes {
@@ -142,8 +166,7 @@ impl<'a> GreedyMesher<'a> {
                 break;
             }
         }
-        self.assess_touched();
-        flips
+        (self.mesh(), flips)
     }
 
     /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would (`cache` holds
@@ -186,8 +209,6 @@ impl<'a> GreedyMesher<'a> {
         self.tin.flip(e);
         cache[t1 as usize] = new1;
         cache[t2 as usize] = new2;
-        // The quadrilateral covers the same samples: no nodata in either new triangle.
-        self.touched.extend_from_slice(&[t1, t2]);
         true
     }
 
@@ -237,6 +258,37 @@ impl<'a> GreedyMesher<'a> {
         (0..3)
             .find(|&k| orient(sides[k].0, sides[k].1, p) == 0)
             .map(|k| 3 * t + k as u32)
+    }
+
+    /// Flips a side of triangle `t` (over `tolerance`) when both triangles the flip
+    /// makes are within `tolerance`: the tolerance met there without a new vertex.
+    fn resolving_flip(&mut self, t: u32, tolerance: f64) -> bool {
+        if self.assessments[t as usize].touches_void {
+            return false;
+        }
+        for e in 3 * t..3 * t + 3 {
+            let Some(quad) = self.tin.quad(e) else {
+                continue;
+            };
+            let [a, b, c, d] = quad.map(|v| self.tin.points[v as usize]);
+            if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
+                continue;
+            }
+            let first = assess(&self.grid, [c, a, d]);
+            if first.error > tolerance || first.touches_void {
+                continue;
+            }
+            let second = assess(&self.grid, [d, b, c]);
+            if second.error > tolerance || second.touches_void {
+                continue;
+            }
+            let f = self.tin.twins[e as usize];
+            self.tin.flip(e);
+            self.touched.extend_from_slice(&[e / 3, f / 3]);
+            self.assess_touched();
+            return true;
+        }
+        false
     }
 
     /// Triangles inserting triangle `t`'s candidate adds.
@@ -312,7 +364,7 @@ impl<'a> GreedyMesher<'a> {
             let assessment = assess(&self.grid, self.tin.triangle_points(t));
             self.assessments[t as usize] = assessment;
             self.versions[t as usize] = self.versions[t as usize].wrapping_add(1);
-            if assessment.error > 0.0 {
+            if assessment.error > self.settled {
                 self.queue.push(Entry {
                     error_bits: assessment.error.to_bits(),
                     triangle: t,
@@ -325,8 +377,9 @@ impl<'a> GreedyMesher<'a> {
     }
 }
 
-/// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`, with
-/// `optimise` passes of error-lowering flips when given.
+/// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`. With
+/// `optimise` (passes), the data-dependent refinements: resolving flips during
+/// insertion towards a tolerance, error-lowering flips after it.
 pub fn greedy_mesh(
     width: usize,
     height: usize,
@@ -345,15 +398,20 @@ pub fn greedy_mesh(
         valid,
     };
     let mut mesher = GreedyMesher::new(grid)?;
-    mesher.run(target);
-    if let Some(passes) = optimise {
-        let limit = match target {
-            GreedyTarget::MaxError(e) => Some(e),
-            GreedyTarget::Triangles(_) => None,
-        };
-        mesher.optimise_flips(limit, passes);
+    if optimise.is_some() {
+        mesher = mesher.with_resolving_flips();
     }
-    Ok(mesher.mesh())
+    mesher.run(target);
+    Ok(match optimise {
+        Some(passes) => {
+            let limit = match target {
+                GreedyTarget::MaxError(e) => Some(e),
+                GreedyTarget::Triangles(_) => None,
+            };
+            mesher.optimise_flips(limit, passes).0
+        }
+        None => mesher.mesh(),
+    })
 }
 
 #[cfg(test)]
@@ -449,6 +507,33 @@ mod tests {
             optimised.1,
             plain.1
         );
+    }
+
+    #[test]
+    fn resolving_flips_meet_a_tolerance_with_fewer_triangles() {
+        let (w, h) = (80, 80);
+        let heights = terrain(w, h);
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let valid_words = valid.as_raw_slice();
+        let grid = Grid {
+            width: w,
+            height: h,
+            heights: &heights,
+            valid: valid_words,
+        };
+        let count = |resolving: bool| {
+            let mut mesher = GreedyMesher::new(grid).unwrap();
+            if resolving {
+                mesher = mesher.with_resolving_flips();
+            }
+            mesher.run(GreedyTarget::MaxError(0.25));
+            let mesh = mesher.mesh();
+            check_valid_mesh(&mesh);
+            assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 0.25);
+            mesh.triangles.len()
+        };
+        let (with, without) = (count(true), count(false));
+        assert!(with < without, "{with} against {without}");
     }
 
     #[test]
