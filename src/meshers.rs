@@ -106,6 +106,9 @@ pub struct MeshRow {
     pub uncovered: u64,
     /// Seconds to build the mesh (for a budget search, the whole search).
     pub build_seconds: f64,
+    /// CPU seconds of the building thread (Linux; `None` elsewhere): unlike wall-clock
+    /// seconds, not inflated by other processes on a busy machine.
+    pub build_cpu_seconds: Option<f64>,
     /// Heap peak while building, bytes.
     pub peak_heap_bytes: usize,
 }
@@ -258,9 +261,10 @@ pub fn measure(
     surface: &Surface,
     budget: Budget,
 ) -> Result<MeshRow, MeshersError> {
-    let start = Instant::now();
+    let (start, cpu_start) = (Instant::now(), thread_cpu_seconds());
     let (mesh, peak) = memory::measure(|| build(method, raster, surface, budget));
     let build_seconds = start.elapsed().as_secs_f64();
+    let build_cpu_seconds = cpu_start.and_then(|s| Some(thread_cpu_seconds()? - s));
     let mesh = mesh?;
     let error = mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid);
     Ok(MeshRow {
@@ -272,8 +276,16 @@ pub fn measure(
         max_error: error.max_error,
         uncovered: error.uncovered_samples,
         build_seconds,
+        build_cpu_seconds,
         peak_heap_bytes: peak,
     })
+}
+
+/// CPU seconds the calling thread has run (Linux `/proc/thread-self/schedstat`).
+fn thread_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let nanoseconds: f64 = stat.split_whitespace().next()?.parse().ok()?;
+    Some(nanoseconds * 1e-9)
 }
 
 /// Every method in `methods` at every budget in `budgets` (methods that cannot mesh the

@@ -201,6 +201,19 @@ fn bad_arguments_and_inputs_are_one_line_errors() {
         ],
         2,
     );
+    fails(
+        &[
+            "mesh",
+            input,
+            "-o",
+            out.to_str().unwrap(),
+            "--method",
+            "greedy",
+            "--threshold",
+            "4",
+        ],
+        2,
+    );
     assert!(!out.exists());
 }
 

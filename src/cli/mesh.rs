@@ -154,6 +154,11 @@ impl MeshOptions {
     /// zerotree): `--triangles`, else `--mesh-error`, else 1 % of the grid's triangles.
     fn direct_budget(&self, samples: usize) -> Result<meshers::Budget, CliError> {
         self.target(0)?;
+        if self.threshold.is_some() {
+            return Err(CliError::Usage(
+                "--threshold applies to --method zerotree only".into(),
+            ));
+        }
         Ok(match (self.triangles, self.mesh_error) {
             (Some(n), _) => meshers::Budget::Triangles(n),
             (None, Some(e)) => meshers::Budget::MaxError(e),

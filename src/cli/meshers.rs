@@ -218,12 +218,8 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let (rows, skipped) =
         with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));
     if let Some(path) = &args.plot {
-        let title = format!(
-            "{} ({}x{})",
-            args.input.display(),
-            raster.width,
-            raster.height
-        );
+        let name = args.input.file_name().unwrap_or_default().to_string_lossy();
+        let title = format!("{name} ({}x{})", raster.width, raster.height);
         let svg = meshers::error_plot_svg(&rows, &title)
             .map_err(|e| CliError::Output(path.clone(), e.to_string()))?;
         wavemesh::atomic::write_atomic(path, |w| w.write_all(svg.as_bytes()))
@@ -259,11 +255,11 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
 /// The rows as a Markdown table.
 fn markdown(rows: &[MeshRow]) -> String {
     let mut s = String::from(
-        "| mesher | budget | triangles | vertices | RMSE | max error | uncovered | build s | peak heap MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| mesher | budget | triangles | vertices | RMSE | max error | uncovered | build s | build CPU s | peak heap MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.3} | {:.1} |\n",
+            "| {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.3} | {} | {:.1} |\n",
             r.method.name(),
             match r.budget {
                 Budget::Triangles(n) => format!("{n} triangles"),
@@ -275,6 +271,8 @@ fn markdown(rows: &[MeshRow]) -> String {
             r.max_error,
             r.uncovered,
             r.build_seconds,
+            r.build_cpu_seconds
+                .map_or_else(|| "n/a".into(), |s| format!("{s:.3}")),
             r.peak_heap_bytes as f64 / 1e6
         ));
     }
