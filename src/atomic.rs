@@ -1,29 +1,143 @@
 //! Atomic file writing: readers of `path` see either the old file or the complete new
-//! one, never a partial write.
+//! one, never a partial write. Only regular files are ever replaced: a symlink is
+//! followed (its target is replaced atomically), character devices and FIFOs
+//! (`/dev/stdout`, a named pipe) are written through, and `-` is standard output.
 
-use std::fs::{self, Permissions};
+use std::fs::{self, File, OpenOptions, Permissions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+
+/// Where a write to a path goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Destination {
+    /// `-`: standard output.
+    Stdout,
+    /// An existing character device or FIFO, written through in place.
+    Stream(PathBuf),
+    /// A regular file (existing or not), replaced atomically; symlinks already followed.
+    File(PathBuf),
+}
+
+impl Destination {
+    /// Whether the output is a stream (standard output, a device, a FIFO) rather than a
+    /// file: such outputs have no extension to choose a format by.
+    pub fn is_stream(&self) -> bool {
+        !matches!(self, Destination::File(_))
+    }
+}
+
+/// Classifies `path`: `-`, a device or FIFO to write through, or the regular file a
+/// write replaces (following symlinks, dangling ones included). Directories, block
+/// devices and sockets are refused with [`io::ErrorKind::InvalidInput`].
+pub fn destination(path: &Path) -> io::Result<Destination> {
+    if path.as_os_str() == "-" {
+        return Ok(Destination::Stdout);
+    }
+    let target = follow_symlinks(path)?;
+    let Ok(meta) = fs::metadata(&target) else {
+        return Ok(Destination::File(target));
+    };
+    let refuse = |what: &str| {
+        Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("the target path is {what}; expected a file path"),
+        ))
+    };
+    if meta.is_file() {
+        Ok(Destination::File(target))
+    } else if meta.is_dir() {
+        refuse("an existing directory")
+    } else if is_char_device_or_fifo(&meta) {
+        Ok(Destination::Stream(target))
+    } else {
+        refuse("a block device or socket, which is never written")
+    }
+}
+
+/// The path a chain of symlinks at `path` ends at (`path` itself when it is none);
+/// relative links are resolved against their own folder.
+fn follow_symlinks(path: &Path) -> io::Result<PathBuf> {
+    let mut current = path.to_path_buf();
+    for _ in 0..40 {
+        match fs::symlink_metadata(&current) {
+            Ok(meta) if meta.file_type().is_symlink() => {
+                let link = fs::read_link(&current)?;
+                current = parent_dir(&current).join(link);
+            }
+            _ => return Ok(current),
+        }
+    }
+    Err(io::Error::new(
+        io::ErrorKind::InvalidInput,
+        "too many levels of symbolic links",
+    ))
+}
+
+#[cfg(unix)]
+fn is_char_device_or_fifo(meta: &fs::Metadata) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    meta.file_type().is_char_device() || meta.file_type().is_fifo()
+}
+
+#[cfg(not(unix))]
+fn is_char_device_or_fifo(_: &fs::Metadata) -> bool {
+    false
+}
 
 /// Writes a file atomically.
 ///
 /// `write` receives a buffered writer on a temporary file created in the directory of
-/// `path`. When it succeeds the data is flushed and fsynced and the temporary file is
-/// renamed over `path`. On any error the temporary file is removed and `path` is left
-/// untouched. An existing file keeps its permission bits; a new one gets the usual
-/// `0o666` minus the umask on Unix (not the `0o600` of a bare temporary file).
+/// the file (after following symlinks). When it succeeds the data is flushed and fsynced
+/// and the temporary file is renamed over the file. On any error the temporary file is
+/// removed and the file is left untouched. An existing file keeps its permission bits;
+/// a new one gets the usual `0o666` minus the umask on Unix (not the `0o600` of a bare
+/// temporary file). Devices, FIFOs and `-` are written through (see [`destination`]).
 ///
 /// Fails with [`io::ErrorKind::InvalidInput`] when `path` is an existing directory.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> io::Result<()> {
-    if path.is_dir() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            "the target path is an existing directory; expected a file path",
-        ));
+    match destination(path)? {
+        Destination::Stdout => write_through(io::stdout().lock(), write),
+        Destination::Stream(device) => {
+            write_through(OpenOptions::new().write(true).open(device)?, write)
+        }
+        Destination::File(file) => replace_file(&file, |w| write(w)),
     }
+}
+
+/// [`write_atomic`] for writers that seek as they write (a TIFF encoder): only a
+/// regular file can take them, so `-`, devices and FIFOs are refused with
+/// [`io::ErrorKind::InvalidInput`].
+pub fn write_atomic_seekable(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
+) -> io::Result<()> {
+    match destination(path)? {
+        Destination::File(file) => replace_file(&file, write),
+        _ => Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "this output seeks while it is written: name a regular file",
+        )),
+    }
+}
+
+/// Writes to a stream through a buffer and flushes it.
+fn write_through(
+    stream: impl Write,
+    write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+) -> io::Result<()> {
+    let mut writer = BufWriter::new(stream);
+    write(&mut writer)?;
+    writer.flush()
+}
+
+/// The temporary-file-and-rename write of a regular file.
+fn replace_file(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
+) -> io::Result<()> {
     let dir = parent_dir(path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(".wavemesh-tmp-");
@@ -140,6 +254,52 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("no/such/dir/out.bin");
         assert!(write_atomic(&path, |w| w.write_all(b"x")).is_err());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn follows_a_symlink_and_replaces_its_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("real.bin");
+        fs::write(&target, b"old").unwrap();
+        let link = dir.path().join("link.bin");
+        std::os::unix::fs::symlink("real.bin", &link).unwrap();
+        write_atomic(&link, |w| w.write_all(b"new")).unwrap();
+        assert!(fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(fs::read(&target).unwrap(), b"new");
+        // A dangling link creates its target.
+        let dangling = dir.path().join("dangling.bin");
+        std::os::unix::fs::symlink("created.bin", &dangling).unwrap();
+        write_atomic(&dangling, |w| w.write_all(b"made")).unwrap();
+        assert_eq!(fs::read(dir.path().join("created.bin")).unwrap(), b"made");
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn writes_through_devices_and_never_replaces_them() {
+        use std::os::unix::fs::FileTypeExt;
+        let null = Path::new("/dev/null");
+        assert_eq!(
+            destination(null).unwrap(),
+            Destination::Stream(null.to_path_buf())
+        );
+        write_atomic(null, |w| w.write_all(b"discarded")).unwrap();
+        assert!(fs::metadata(null).unwrap().file_type().is_char_device());
+        assert_eq!(destination(Path::new("-")).unwrap(), Destination::Stdout);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlink_loops_are_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a");
+        std::os::unix::fs::symlink("b", &a).unwrap();
+        std::os::unix::fs::symlink("a", dir.path().join("b")).unwrap();
+        assert!(write_atomic(&a, |w| w.write_all(b"x")).is_err());
     }
 
     #[cfg(unix)]

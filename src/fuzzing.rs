@@ -9,10 +9,20 @@
 
 use std::io::Write;
 
-use crate::dem::{read_dem, DemFormat, ReadOptions};
+use crate::dem::{read_dem, DemFormat, ReadOptions, WorkMemory};
 
 /// The largest raster the harness lets a reader allocate.
 pub const FUZZ_MAX_SAMPLES: u64 = 1 << 20;
+
+/// The memory budget the harness gives a read: binding before the sample limit for
+/// 16- and 32-bit samples, so both checks are fuzzed.
+pub const FUZZ_MAX_MEMORY: u64 = 3 << 20;
+
+/// The working memory per sample the harness declares beside the raster.
+const FUZZ_WORK: WorkMemory = WorkMemory {
+    integer: 1,
+    float: 2,
+};
 
 /// Reads `data` as a DEM file of `format`; must never panic.
 ///
@@ -23,9 +33,9 @@ pub const FUZZ_MAX_SAMPLES: u64 = 1 << 20;
 /// `.png` input starting with a TIFF signature is read as a TIFF: every reader is reachable
 /// from every target, which is fine.
 ///
-/// Options: `max_samples` = [`FUZZ_MAX_SAMPLES`]. An `Ok` raster must be consistent:
-/// positive sides, `width × height` samples, no more than the limit, and a Terrain-RGB
-/// read gives `f32` samples.
+/// Options: `max_samples` = [`FUZZ_MAX_SAMPLES`], `max_memory` = [`FUZZ_MAX_MEMORY`].
+/// An `Ok` raster must be consistent: positive sides, `width × height` samples, within
+/// both limits, and a Terrain-RGB read gives `f32` samples.
 #[doc(hidden)]
 pub fn read_arbitrary(data: &[u8], format: DemFormat) {
     let (prefix, suffix) = match format {
@@ -44,6 +54,10 @@ pub fn read_arbitrary(data: &[u8], format: DemFormat) {
     let options = ReadOptions {
         terrain_rgb: format == DemFormat::TerrainRgb,
         max_samples: FUZZ_MAX_SAMPLES,
+        max_memory: FUZZ_MAX_MEMORY,
+        work: FUZZ_WORK,
+        // Fuzz every decoder the readers reach, the lossy ones too.
+        accept_lossy: true,
     };
     let Ok(raster) = read_dem(file.path(), &options) else {
         return;
@@ -66,6 +80,15 @@ pub fn read_arbitrary(data: &[u8], format: DemFormat) {
         raster.samples.len() as u64 <= FUZZ_MAX_SAMPLES,
         "{} samples read past the limit of {FUZZ_MAX_SAMPLES}",
         raster.samples.len()
+    );
+    let work = match raster.sample_type() {
+        wavemesh_codec::SampleType::F32 => FUZZ_WORK.float,
+        _ => FUZZ_WORK.integer,
+    };
+    let bytes = raster.samples.len() as u64 * (raster.sample_type().bytes() as u64 + work);
+    assert!(
+        bytes <= FUZZ_MAX_MEMORY,
+        "{bytes} bytes read past the memory limit of {FUZZ_MAX_MEMORY}"
     );
     if format == DemFormat::TerrainRgb {
         assert_eq!(

@@ -11,3 +11,4 @@ pub mod mesh;
 pub mod meshers;
 pub mod metrics;
 pub mod report;
+pub mod synth;

@@ -311,6 +311,7 @@ pub fn table_markdown(rows: &[TableRow]) -> String {
             r.remaining_percent
         ));
     }
+    s.push_str(&uncovered_note(rows));
     s.push_str("\nTable 2: bit rate and memory (paper accounting: 18×3 bits a triangle, 12×3 bits a vertex)\n\n");
     s.push_str("| threshold (plane) | bpp | mesh bytes (paper) | mesh bytes (in memory) | .ezw bytes | saving ratio |\n");
     s.push_str("|---|---:|---:|---:|---:|---:|\n");
@@ -326,11 +327,11 @@ pub fn table_markdown(rows: &[TableRow]) -> String {
 /// Both tables as one CSV (a header line, one line per row).
 pub fn table_csv(rows: &[TableRow]) -> String {
     let mut s = String::from(
-        "plane,threshold,triangles,vertices,search_s,triangulation_s,mesh_psnr_db,mesh_rmse,mesh_max_error,image_psnr_db,image_rmse,remaining_percent,bpp,ezw_bytes,mesh_bytes_paper,mesh_bytes_in_memory,saving_ratio\n",
+        "plane,threshold,triangles,vertices,search_s,triangulation_s,mesh_psnr_db,mesh_rmse,mesh_max_error,image_psnr_db,image_rmse,remaining_percent,bpp,ezw_bytes,mesh_bytes_paper,mesh_bytes_in_memory,saving_ratio,mesh_uncovered_samples\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             r.plane,
             r.threshold,
             r.triangles,
@@ -347,8 +348,26 @@ pub fn table_csv(rows: &[TableRow]) -> String {
             r.ezw_bytes,
             r.mesh_bytes_paper,
             r.mesh_bytes_in_memory,
-            r.saving_ratio
+            r.saving_ratio,
+            r.mesh.uncovered_samples
         ));
     }
     s
+}
+
+/// A line under Table 1 when meshes leave valid samples uncovered (cut off by nodata):
+/// their errors are over the covered samples only. Empty otherwise.
+fn uncovered_note(rows: &[TableRow]) -> String {
+    let counts = rows.iter().map(|r| r.mesh.uncovered_samples);
+    match (counts.clone().min(), counts.max()) {
+        (Some(lo), Some(hi)) if hi > 0 => {
+            let count = if lo == hi {
+                hi.to_string()
+            } else {
+                format!("{lo} to {hi}")
+            };
+            format!("\nMesh errors are over the samples each mesh covers: {count} valid samples next to nodata are left uncovered and not measured.\n")
+        }
+        _ => String::new(),
+    }
 }

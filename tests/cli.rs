@@ -1,38 +1,16 @@
 //! End-to-end tests of the `wavemesh` binary: every subcommand, JSON reports, errors.
 
+mod support;
+
+use support::{json, s, sample, wavemesh};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn wavemesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn json(output: &Output) -> serde_json::Value {
-    assert!(
-        output.status.success(),
-        "command failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).expect("stdout is one JSON object")
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(name)
-}
+use std::process::Command;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-tests");
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 #[test]
@@ -41,11 +19,11 @@ fn lossless_round_trip_of_every_sample_is_bit_exact() {
         let input = sample(name);
         let ezw = scratch(&format!("{name}.ezw"));
         let out = scratch(&format!("{name}.decoded.tif"));
-        let enc = json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+        let enc = json(&["encode", s(&input), "-o", s(&ezw), "--json"]);
         assert_eq!(enc["schema_version"], 1);
         assert_eq!(enc["mode"], "lossless");
         assert_eq!(enc["wavelet"], "5/3");
-        let dec = json(&wavemesh(&[
+        let dec = json(&[
             "decode",
             s(&ezw),
             "-o",
@@ -53,11 +31,11 @@ fn lossless_round_trip_of_every_sample_is_bit_exact() {
             "--reference",
             s(&input),
             "--json",
-        ]));
+        ]);
         assert_eq!(dec["complete"], true);
         assert_eq!(dec["distortion"]["identical"], true, "{name} not bit-exact");
         assert_eq!(dec["distortion"]["nodata_mismatches"], 0);
-        let cmp = json(&wavemesh(&["compare", s(&input), s(&out), "--json"]));
+        let cmp = json(&["compare", s(&input), s(&out), "--json"]);
         assert_eq!(cmp["max_error"], 0.0);
         assert_eq!(cmp["identical"], true);
     }
@@ -67,22 +45,14 @@ fn lossless_round_trip_of_every_sample_is_bit_exact() {
 fn rate_budget_and_progressive_prefixes() {
     let input = sample("jacksboro_fault.tif");
     let ezw = scratch("rate.ezw");
-    let enc = json(&wavemesh(&[
-        "encode",
-        s(&input),
-        "-o",
-        s(&ezw),
-        "--bpp",
-        "1",
-        "--json",
-    ]));
+    let enc = json(&["encode", s(&input), "-o", s(&ezw), "--bpp", "1", "--json"]);
     assert_eq!(enc["wavelet"], "9/7");
     let samples = 403.0 * 344.0;
     assert_eq!(enc["bytes"], (samples / 8.0f64).floor() as u64);
     let mut last_psnr = 0.0;
     for bpp in ["0.1", "0.25", "0.5", "1"] {
         let out = scratch(&format!("rate-{bpp}.tif"));
-        let dec = json(&wavemesh(&[
+        let dec = json(&[
             "decode",
             s(&ezw),
             "-o",
@@ -92,7 +62,7 @@ fn rate_budget_and_progressive_prefixes() {
             "--reference",
             s(&input),
             "--json",
-        ]));
+        ]);
         let psnr = dec["distortion"]["psnr_db"].as_f64().unwrap();
         assert!(
             psnr > last_psnr,
@@ -109,7 +79,7 @@ fn max_error_is_guaranteed() {
     for e in ["1", "2", "5"] {
         let ezw = scratch(&format!("e{e}.ezw"));
         let out = scratch(&format!("e{e}.tif"));
-        let enc = json(&wavemesh(&[
+        let enc = json(&[
             "encode",
             s(&input),
             "-o",
@@ -117,9 +87,9 @@ fn max_error_is_guaranteed() {
             "--max-error",
             e,
             "--json",
-        ]));
+        ]);
         assert_eq!(enc["mode"], "max-error");
-        let dec = json(&wavemesh(&[
+        let dec = json(&[
             "decode",
             s(&ezw),
             "-o",
@@ -127,7 +97,7 @@ fn max_error_is_guaranteed() {
             "--reference",
             s(&input),
             "--json",
-        ]));
+        ]);
         let max = dec["distortion"]["max_error"].as_f64().unwrap();
         assert!(max <= e.parse::<f64>().unwrap(), "max error {max} > {e}");
         assert_eq!(dec["distortion"]["nodata_mismatches"], 0);
@@ -138,8 +108,8 @@ fn max_error_is_guaranteed() {
 fn info_lists_the_ladder() {
     let input = sample("jacksboro_fault.tif");
     let ezw = scratch("info.ezw");
-    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
-    let info = json(&wavemesh(&["info", s(&ezw), "--json"]));
+    json(&["encode", s(&input), "-o", s(&ezw), "--json"]);
+    let info = json(&["info", s(&ezw), "--json"]);
     assert_eq!(info["width"], 403);
     assert_eq!(info["height"], 344);
     assert_eq!(info["sample_type"], "i16");
@@ -172,8 +142,8 @@ fn georeferencing_and_nodata_survive_to_the_output() {
     let input = sample("jacksboro_voids.tif");
     let ezw = scratch("geo.ezw");
     let out = scratch("geo.tif");
-    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
-    json(&wavemesh(&["decode", s(&ezw), "-o", s(&out), "--json"]));
+    json(&["encode", s(&input), "-o", s(&ezw), "--json"]);
+    json(&["decode", s(&ezw), "-o", s(&out), "--json"]);
     let options = wavemesh::dem::ReadOptions::default();
     let original = wavemesh::dem::read_dem(&input, &options).unwrap();
     let decoded = wavemesh::dem::read_dem(&out, &options).unwrap();
@@ -217,12 +187,12 @@ fn bad_input_gives_one_line_errors_and_no_output() {
 fn truncated_file_decodes_to_a_coarser_image() {
     let input = sample("jacksboro_fault.tif");
     let ezw = scratch("trunc.ezw");
-    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    json(&["encode", s(&input), "-o", s(&ezw), "--json"]);
     let bytes = std::fs::read(&ezw).unwrap();
     let cut = scratch("trunc-cut.ezw");
     std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
     let out = scratch("trunc.tif");
-    let dec = json(&wavemesh(&[
+    let dec = json(&[
         "decode",
         s(&cut),
         "-o",
@@ -230,7 +200,7 @@ fn truncated_file_decodes_to_a_coarser_image() {
         "--reference",
         s(&input),
         "--json",
-    ]));
+    ]);
     assert_eq!(dec["complete"], false);
     let psnr = dec["distortion"]["psnr_db"].as_f64().unwrap();
     assert!(psnr > 30.0 && psnr.is_finite(), "{psnr}");
@@ -239,7 +209,7 @@ fn truncated_file_decodes_to_a_coarser_image() {
 #[test]
 fn demo_runs_on_the_bundled_sample() {
     let dir = scratch("demo");
-    let report = json(&wavemesh(&["demo", "--out-dir", s(&dir), "--json"]));
+    let report = json(&["demo", "--out-dir", s(&dir), "--json"]);
     let rows = report["rows"].as_array().unwrap();
     assert!(rows.iter().any(|r| r["exact"] == true));
     assert!(dir.join("lossless.ezw").exists());
@@ -249,15 +219,8 @@ fn demo_runs_on_the_bundled_sample() {
 fn verify_reports_intact_damaged_and_truncated_files() {
     let input = sample("jacksboro_voids.tif");
     let ezw = scratch("verify.ezw");
-    json(&wavemesh(&[
-        "encode",
-        s(&input),
-        "-o",
-        s(&ezw),
-        "--verify",
-        "--json",
-    ]));
-    let intact = json(&wavemesh(&["verify", s(&ezw), "--json"]));
+    json(&["encode", s(&input), "-o", s(&ezw), "--verify", "--json"]);
+    let intact = json(&["verify", s(&ezw), "--json"]);
     assert_eq!(intact["damaged"], false);
     assert_eq!(intact["truncated"], false);
     assert_eq!(intact["usable_bytes"], intact["file_bytes"]);
@@ -290,7 +253,7 @@ fn verify_reports_intact_damaged_and_truncated_files() {
     let truncated = scratch("verify-truncated.ezw");
     let clean = std::fs::read(&ezw).unwrap();
     std::fs::write(&truncated, &clean[..clean.len() * 2 / 3]).unwrap();
-    let report = json(&wavemesh(&["verify", s(&truncated), "--json"]));
+    let report = json(&["verify", s(&truncated), "--json"]);
     assert_eq!(report["damaged"], false);
     assert_eq!(report["truncated"], true);
 }
@@ -354,7 +317,7 @@ fn killing_an_encode_never_leaves_a_partial_output() {
 fn a_header_claiming_a_huge_raster_is_refused_at_once() {
     let input = sample("jacksboro_fault.tif");
     let ezw = scratch("huge-source.ezw");
-    json(&wavemesh(&["encode", s(&input), "-o", s(&ezw), "--json"]));
+    json(&["encode", s(&input), "-o", s(&ezw), "--json"]);
     let bytes = std::fs::read(&ezw).unwrap();
     let (mut header, _) = wavemesh_codec::Header::parse(&bytes).unwrap();
     header.width = 30_000;

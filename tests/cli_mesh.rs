@@ -1,8 +1,11 @@
 //! End-to-end tests of the mesh commands of the `wavemesh` binary: `mesh`, `decode --mesh`
 //! and `table`, on the bundled samples (403 × 344, so the whole file runs in seconds).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
+
+use support::{json, s, sample, scratch, stdout, wavemesh};
+
+use std::path::Path;
 
 use serde_json::Value;
 
@@ -10,30 +13,6 @@ use serde_json::Value;
 const SAMPLES: u64 = 403 * 344;
 /// Valid samples of `jacksboro_voids.tif` (4173 of them are nodata).
 const VOIDS_VALID: u64 = SAMPLES - 4173;
-
-fn wavemesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-/// Runs a command that must succeed and returns its stdout.
-fn stdout(args: &[&str]) -> String {
-    let output = wavemesh(args);
-    assert!(
-        output.status.success(),
-        "wavemesh {args:?} failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    String::from_utf8(output.stdout).expect("stdout is UTF-8")
-}
-
-/// Runs a command that must succeed and parses its stdout as one JSON object.
-fn json(args: &[&str]) -> Value {
-    let out = stdout(args);
-    serde_json::from_str(&out).unwrap_or_else(|e| panic!("wavemesh {args:?}: {e}\n{out}"))
-}
 
 /// Runs a command that must fail with `code` and one line on stderr; returns that line.
 fn fails(args: &[&str], code: i32) -> String {
@@ -46,22 +25,6 @@ fn fails(args: &[&str], code: i32) -> String {
     );
     assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
     stderr
-}
-
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(name)
-}
-
-fn scratch() -> tempfile::TempDir {
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-mesh-tests");
-    std::fs::create_dir_all(&root).unwrap();
-    tempfile::tempdir_in(root).unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn f64_of(v: &Value) -> f64 {
@@ -172,7 +135,7 @@ fn check_mesh_report(report: &Value, path: &Path) -> Value {
 
 #[test]
 fn mesh_error_bound_holds_in_every_format() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     for (ext, e) in [("glb", 4.0), ("obj", 12.0), ("ply", 30.0)] {
         let out = dir.path().join(format!("fault.{ext}"));
@@ -189,7 +152,7 @@ fn mesh_error_bound_holds_in_every_format() {
         assert_eq!(report["schema_version"], 1);
         let mesh = check_mesh_report(&report, &out);
         assert_eq!(mesh["format"], ext);
-        assert_eq!(mesh["xy_units"], "georeferenced");
+        assert_eq!(mesh["xy_units"], "local_enu");
         assert_eq!(f64_of(&mesh["tolerance"]), e);
         let decoded = &mesh["error_vs_decoded"];
         let original = &mesh["error_vs_original"];
@@ -205,7 +168,7 @@ fn mesh_error_bound_holds_in_every_format() {
 
 #[test]
 fn looser_tolerances_give_fewer_triangles() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let mut last = u64::MAX;
     for e in ["0", "10", "40"] {
@@ -230,7 +193,7 @@ fn looser_tolerances_give_fewer_triangles() {
 
 #[test]
 fn triangle_budgets_hold_for_both_searches() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     for search in ["threshold", "error"] {
         let mut last = 0;
@@ -270,7 +233,7 @@ fn triangle_budgets_hold_for_both_searches() {
 
 #[test]
 fn lossy_streams_mesh_against_the_decoded_heights() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let out = dir.path().join("lossy.glb");
     let report = json(&[
@@ -306,7 +269,7 @@ fn lossy_streams_mesh_against_the_decoded_heights() {
 
 #[test]
 fn pixel_units_and_z_scale_reach_the_file() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let out = dir.path().join("pixel.obj");
     let report = json(&[
@@ -347,7 +310,7 @@ fn pixel_units_and_z_scale_reach_the_file() {
     }
     assert_eq!(corners, [true; 4], "the mesh covers the grid's corners");
 
-    // The default: georeferenced degrees, heights unscaled.
+    // Georeferenced degrees on request, heights unscaled.
     let geo = dir.path().join("geo.obj");
     let report = json(&[
         "mesh",
@@ -356,6 +319,8 @@ fn pixel_units_and_z_scale_reach_the_file() {
         s(&geo),
         "--threshold",
         "256",
+        "--xy",
+        "degrees",
         "--json",
     ]);
     assert_eq!(report["mesh"]["xy_units"], "georeferenced");
@@ -374,7 +339,7 @@ fn pixel_units_and_z_scale_reach_the_file() {
 
 #[test]
 fn decode_meshes_at_a_threshold() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let ezw = dir.path().join("fault.ezw");
     stdout(&["encode", s(&input), "-o", s(&ezw)]);
@@ -425,7 +390,7 @@ fn decode_meshes_at_a_threshold() {
 
 #[test]
 fn prefix_decodes_mesh_at_the_decoders_threshold() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_voids.tif");
     let ezw = dir.path().join("voids.ezw");
     stdout(&["encode", s(&input), "-o", s(&ezw)]);
@@ -469,7 +434,7 @@ fn prefix_decodes_mesh_at_the_decoders_threshold() {
 
 #[test]
 fn mesh_options_without_mesh_are_a_usage_error() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let ezw = dir.path().join("fault.ezw");
     stdout(&["encode", s(&sample("jacksboro_fault.tif")), "-o", s(&ezw)]);
     let out = dir.path().join("never.tif");
@@ -493,7 +458,7 @@ fn mesh_options_without_mesh_are_a_usage_error() {
 
 #[test]
 fn unknown_mesh_extensions_are_refused_and_write_nothing() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     for name in ["fault.stl", "fault", "fault.glb.txt"] {
         let out = dir.path().join(name);
@@ -528,7 +493,7 @@ fn unknown_mesh_extensions_are_refused_and_write_nothing() {
 
 #[test]
 fn decode_with_an_unknown_mesh_extension_writes_no_dem() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let ezw = dir.path().join("fault.ezw");
     stdout(&["encode", s(&sample("jacksboro_fault.tif")), "-o", s(&ezw)]);
     let out = dir.path().join("out.tif");
@@ -560,7 +525,7 @@ fn markdown_rows<'a>(text: &'a str, title: &str) -> Vec<Vec<&'a str>> {
 
 #[test]
 fn table_prints_both_tables_with_a_row_per_pass() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let ezw = dir.path().join("fault.ezw");
     let info = {
@@ -606,7 +571,7 @@ fn csv_table(args: &[&str]) -> Vec<std::collections::HashMap<String, f64>> {
         .iter()
         .map(str::to_string)
         .collect();
-    assert_eq!(header.len(), 17, "{header:?}");
+    assert_eq!(header.len(), 18, "{header:?}");
     for column in [
         "plane",
         "threshold",
@@ -753,7 +718,7 @@ fn own_rule_splits_no_more_than_the_zerotree() {
 
 #[test]
 fn voids_meshes_keep_the_bound_and_count_cut_off_samples() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_voids.tif");
     for (args, bound) in [
         (&["--mesh-error", "6"][..], Some(6.0)),
@@ -785,7 +750,7 @@ fn voids_meshes_keep_the_bound_and_count_cut_off_samples() {
 
 #[test]
 fn demo_writes_a_mesh_and_prints_the_tables() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let report = json(&["demo", "--out-dir", s(dir.path()), "--json"]);
     let mesh = &report["mesh"];
     let path = dir.path().join("jacksboro_fault.glb");
@@ -822,13 +787,13 @@ fn demo_writes_a_mesh_and_prints_the_tables() {
 
 #[test]
 fn meshes_larger_than_the_memory_limit_are_refused_before_any_work() {
-    let dir = scratch();
+    let dir = scratch("cli-mesh-tests");
     let out = dir.path().join("big.glb");
     let input = sample("jacksboro_fault.tif");
     // 403 × 344 samples need far more than 100 kB for a mesh.
     let message = fails(
         &["mesh", s(&input), "-o", s(&out), "--max-memory", "100000"],
-        2,
+        3,
     );
     assert!(message.contains("--max-memory"), "{message}");
     assert!(!out.exists());
@@ -847,7 +812,7 @@ fn meshes_larger_than_the_memory_limit_are_refused_before_any_work() {
             "--max-memory",
             "1000000",
         ],
-        2,
+        3,
     );
     assert!(message.contains("--max-memory"), "{message}");
     assert!(!out.exists() && !dem.exists());

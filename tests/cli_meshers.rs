@@ -2,28 +2,11 @@
 //! bundled samples (403 × 344), and one check against the peers' pydelatin figures on
 //! the shared DEM `fuji_terrainrgb` (skipped with a notice when `../shared/dem` is absent).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
+
+use support::{json, s, sample, shared_dem, wavemesh};
 
 use serde_json::Value;
-
-fn wavemesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wavemesh"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-/// Runs a command that must succeed and parses its stdout as one JSON object.
-fn json(args: &[&str]) -> Value {
-    let output = wavemesh(args);
-    assert!(
-        output.status.success(),
-        "wavemesh {args:?} failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| panic!("wavemesh {args:?}: {e}"))
-}
 
 /// Runs a command that must fail with `code` and one line on stderr.
 fn fails(args: &[&str], code: i32) {
@@ -33,16 +16,8 @@ fn fails(args: &[&str], code: i32) {
     assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
 }
 
-fn sample(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(name)
-}
-
 fn scratch() -> tempfile::TempDir {
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-meshers-tests");
-    std::fs::create_dir_all(&root).unwrap();
-    tempfile::tempdir_in(root).unwrap()
+    support::scratch("cli-meshers-tests")
 }
 
 fn num(v: &Value) -> f64 {
@@ -63,14 +38,14 @@ fn compare_meshers_measures_every_mesher_and_draws_the_plot() {
     let input = sample("jacksboro_fault.tif");
     let report = json(&[
         "compare-meshers",
-        input.to_str().unwrap(),
+        s(&input),
         "--window",
         "100,100,129,129",
         "--triangles",
         "400,2000",
         "--json",
         "--plot",
-        plot.to_str().unwrap(),
+        s(&plot),
     ]);
     let rows = report["rows"].as_array().unwrap();
     for method in ["zerotree", "greedy", "delaunay", "delatin", "martini"] {
@@ -103,9 +78,9 @@ fn greedy_meets_a_tolerance_with_fewer_triangles_than_delaunay() {
         let out = dir.path().join(format!("{method}.obj"));
         let report = json(&[
             "mesh",
-            input.to_str().unwrap(),
+            s(&input),
             "-o",
-            out.to_str().unwrap(),
+            s(&out),
             "--method",
             method,
             "--mesh-error",
@@ -130,9 +105,9 @@ fn greedy_leaves_nodata_out() {
     let input = sample("jacksboro_voids.tif");
     let report = json(&[
         "mesh",
-        input.to_str().unwrap(),
+        s(&input),
         "-o",
-        out.to_str().unwrap(),
+        s(&out),
         "--method",
         "greedy",
         "--triangles",
@@ -152,7 +127,7 @@ fn greedy_leaves_nodata_out() {
 #[test]
 fn bad_arguments_and_inputs_are_one_line_errors() {
     let input = sample("jacksboro_fault.tif");
-    let input = input.to_str().unwrap();
+    let input = s(&input);
     fails(&["compare-meshers", input, "--triangles", "0"], 2);
     fails(
         &[
@@ -193,7 +168,7 @@ fn bad_arguments_and_inputs_are_one_line_errors() {
             "mesh",
             input,
             "-o",
-            out.to_str().unwrap(),
+            s(&out),
             "--method",
             "greedy",
             "--mesh-error",
@@ -206,7 +181,7 @@ fn bad_arguments_and_inputs_are_one_line_errors() {
             "mesh",
             input,
             "-o",
-            out.to_str().unwrap(),
+            s(&out),
             "--method",
             "greedy",
             "--threshold",
@@ -223,18 +198,13 @@ const PYDELATIN_FUJI_CROP: [(u64, f64); 2] = [(2484, 6.64891), (23832, 1.91331)]
 
 #[test]
 fn shared_fuji_greedy_beats_pydelatin_figures() {
-    let dem = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/dem/fuji_terrainrgb/fuji_terrainrgb.tif");
-    if !dem.exists() {
-        eprintln!(
-            "SKIPPED shared_fuji_greedy_beats_pydelatin_figures: {} not found",
-            dem.display()
-        );
+    let Some(dir) = shared_dem("shared_fuji_greedy_beats_pydelatin_figures") else {
         return;
-    }
+    };
+    let dem = dir.join("fuji_terrainrgb/fuji_terrainrgb.tif");
     let report = json(&[
         "compare-meshers",
-        dem.to_str().unwrap(),
+        s(&dem),
         "--window",
         "127,127,257,257",
         "--methods",

@@ -2,23 +2,43 @@
 //! `../shared/dem` (checked against its `manifest.json`, skipped when absent) and the
 //! samples in `samples/`.
 
+mod support;
+
 use std::collections::HashSet;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::Value;
 use wavemesh::dem::{detect_format, read_dem, write_dem, DemFormat, ReadOptions};
 use wavemesh_codec::{Raster, SampleType, Samples};
 
-/// The shared DEM folder, or `None` (with a notice) when it is not there.
-fn shared_dem() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dem");
-    if dir.join("manifest.json").is_file() {
-        Some(dir)
+/// The GeoKeys name the manifest's EPSG code (geographic or projected) and the pixel
+/// size is the manifest's ground resolution (3 arc-seconds, or metres), north-up.
+fn check_crs_and_pixel_size(name: &str, g: &wavemesh_codec::Georef, ds: &Value) {
+    let crs = ds["crs"].as_str().unwrap();
+    // "EPSG:4326", or "EPSG:4326 (nominal; ...)".
+    let code = crs.split_whitespace().next().unwrap();
+    let code: u16 = code.strip_prefix("EPSG:").unwrap().parse().unwrap();
+    let (key, pixel) = if code == 4326 {
+        // 3 arc-seconds (alps_srtm_voids stores it rounded to 0.000833333).
+        assert_eq!(g.geo_ascii_params, "WGS 84|");
+        assert_eq!(g.geo_double_params, vec![298.257223563, 6378137.0]);
+        (2048, 1.0 / 1200.0)
     } else {
-        eprintln!("skipping: ../shared/dem not found");
-        None
-    }
+        let metres = ds["ground_resolution"].as_str().unwrap();
+        let metres: f64 = metres.trim_end_matches(" m").parse().unwrap();
+        (3072, metres)
+    };
+    let keys = &g.geo_key_directory;
+    assert!(
+        keys.chunks(4).any(|k| k == [key, 0, 1, code]),
+        "{name} keys {keys:?}"
+    );
+    let gt = g.geotransform;
+    let tolerance = 1e-9 * pixel.max(1.0);
+    assert!((gt[1] - pixel).abs() < tolerance, "{name} pixel width");
+    assert!((gt[5] + pixel).abs() < tolerance, "{name} pixel height");
+    assert_eq!((gt[2], gt[4]), (0.0, 0.0));
 }
 
 /// The manifest's datasets.
@@ -57,7 +77,9 @@ fn sample_bits(samples: &Samples, i: usize) -> u64 {
 
 #[test]
 fn shared_tifs_match_the_manifest() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_tifs_match_the_manifest") else {
+        return;
+    };
     for ds in datasets(&dir) {
         let name = ds["name"].as_str().unwrap();
         let path = dir.join(ds["files"]["tif"].as_str().unwrap());
@@ -82,7 +104,10 @@ fn shared_tifs_match_the_manifest() {
             sample_type(ds["dtype"].as_str().unwrap()),
             "{name} type"
         );
-        assert_eq!(r.nodata, ds["nodata_value"].as_f64(), "{name} nodata");
+        match ds["nodata_value"].as_str() {
+            Some("NaN") => assert!(r.nodata.is_some_and(f64::is_nan), "{name} nodata"),
+            _ => assert_eq!(r.nodata, ds["nodata_value"].as_f64(), "{name} nodata"),
+        }
 
         let valid: Vec<usize> = (0..r.len()).filter(|&i| r.is_valid(i)).collect();
         let nodata_count = (r.len() - valid.len()) as u64;
@@ -111,31 +136,16 @@ fn shared_tifs_match_the_manifest() {
         let georeferenced = ds["georeferenced"].as_bool().unwrap();
         assert_eq!(r.georef.is_some(), georeferenced, "{name} georef");
         if let Some(g) = &r.georef {
-            // Every georeferenced set here is EPSG:4326, 3 arc-seconds, north-up.
-            let keys = &g.geo_key_directory;
-            assert!(
-                keys.chunks(4).any(|k| k == [2048, 0, 1, 4326]),
-                "{name} keys"
-            );
-            assert_eq!(g.geo_ascii_params, "WGS 84|");
-            assert_eq!(g.geo_double_params, vec![298.257223563, 6378137.0]);
-            // 3 arc-seconds (alps_srtm_voids stores it rounded to 0.000833333).
-            assert!(
-                (g.geotransform[1] - 1.0 / 1200.0).abs() < 1e-9,
-                "{name} pixel width"
-            );
-            assert!(
-                (g.geotransform[5] + 1.0 / 1200.0).abs() < 1e-9,
-                "{name} pixel height"
-            );
-            assert_eq!((g.geotransform[2], g.geotransform[4]), (0.0, 0.0));
+            check_crs_and_pixel_size(name, g, &ds);
         }
     }
 }
 
 #[test]
 fn shared_pngs_equal_their_tifs_plus_offset() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_pngs_equal_their_tifs_plus_offset") else {
+        return;
+    };
     let mut checked = 0;
     for ds in datasets(&dir) {
         let name = ds["name"].as_str().unwrap();
@@ -176,7 +186,9 @@ fn shared_pngs_equal_their_tifs_plus_offset() {
 
 #[test]
 fn srtm_hgt_equals_its_tif() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::srtm_hgt_equals_its_tif") else {
+        return;
+    };
     let hgt_path = dir.join("srtm3_n57e011/N57E011.hgt");
     assert_eq!(
         detect_format(&hgt_path, &[0; 16], &ReadOptions::default()).unwrap(),
@@ -197,7 +209,9 @@ fn srtm_hgt_equals_its_tif() {
 
 #[test]
 fn fuji_terrain_rgb_equals_its_tif() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::fuji_terrain_rgb_equals_its_tif") else {
+        return;
+    };
     let png = dir.join("fuji_terrainrgb/fuji.png");
     let options = ReadOptions {
         terrain_rgb: true,
@@ -222,7 +236,9 @@ fn fuji_terrain_rgb_equals_its_tif() {
 
 #[test]
 fn shared_dems_survive_write_and_read_back() {
-    let Some(dir) = shared_dem() else { return };
+    let Some(dir) = support::shared_dem("dem_io::shared_dems_survive_write_and_read_back") else {
+        return;
+    };
     let out = tempfile::tempdir().unwrap();
     for (tif, formats) in [
         ("alps_srtm_voids/alps_srtm_voids.tif", &["tif", "asc"][..]),
@@ -293,7 +309,7 @@ fn samples_match_what_the_script_claims() {
         }
     }
     // Same heights and placement as the shared copy of the DEM, when it is there.
-    if let Some(dir) = shared_dem() {
+    if let Some(dir) = support::shared_dem("dem_io::samples_match_what_the_script_claims") {
         let shared = read(&dir.join("jacksboro_fault/jacksboro_fault.tif"));
         assert_eq!(clean.samples, shared.samples);
         assert_eq!(

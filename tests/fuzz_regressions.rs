@@ -8,6 +8,8 @@
 //! `samples/`:
 //! `cargo test --release --test fuzz_regressions -- --ignored make_seeds`.
 
+mod support;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -59,7 +61,10 @@ fn replay(target: &str, run: impl Fn(&[u8])) -> (usize, usize) {
                 .to_string_lossy()
                 .into_owned();
             if OPEN.iter().any(|(p, _)| *p == relative) {
-                eprintln!("skipping {relative}: open bug");
+                support::skipped(
+                    &format!("fuzz_regressions {relative}"),
+                    "open bug (see OPEN)",
+                );
                 continue;
             }
             let data = fs::read(&path).unwrap();

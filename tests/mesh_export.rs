@@ -4,8 +4,9 @@
 //! Meshes are built by hand: fully triangulated grids, and a "random-ish" mesh over a
 //! subset of a grid's samples with shuffled vertices and mixed diagonals. Every format
 //! must give back the vertex and triangle counts, the positions (exactly for OBJ and PLY,
-//! to `f32` precision for glTF) and triangles that face up, in pixel units and under
-//! north-up, south-up and rotated geotransforms.
+//! to `f32` precision for glTF) and triangles that face up, in pixel units, under
+//! north-up, south-up and rotated geotransforms, and in a geographic DEM's local metric
+//! (east-north-up) frame.
 
 use std::path::Path;
 
@@ -18,6 +19,7 @@ use wavemesh::mesh::export::{
     encode_mesh, write_mesh, ExportError, MeshFormat, Placement, XyUnits,
 };
 use wavemesh::mesh::GridMesh;
+use wavemesh_codec::Georef;
 
 /// A UTM-like north-up geotransform (30 m pixels, rows going south).
 const NORTH_UP: [f64; 6] = [523_456.789, 30.0, 0.0, 4_123_456.321, 0.0, -30.0];
@@ -152,7 +154,21 @@ fn placements() -> Vec<(&'static str, Placement)> {
         ("south-up", Placement::georeferenced(SOUTH_UP, 3.0)),
         ("rotated", Placement::georeferenced(ROTATED, 1.0)),
         ("fallback", Placement::default()),
+        ("geographic", geographic()),
     ]
+}
+
+/// EPSG:4326 with 3" cells around 36.7° N: metres east-north-up of the grid's centre.
+fn geographic() -> Placement {
+    let step = 1.0 / 1200.0;
+    let georef = Georef {
+        geotransform: [-84.41375, step, 0.0, 36.73, 0.0, -step],
+        geo_key_directory: vec![1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326],
+        ..Georef::default()
+    };
+    let p = Placement::metric(Some(&georef), 23, 17, 1.0).unwrap();
+    assert!(matches!(p.xy, XyUnits::Local(_)));
+    p
 }
 
 /// The terrain-frame position of vertex `v`, computed here from the definition.
@@ -168,6 +184,14 @@ fn expected_position(mesh: &GridMesh, heights: &[f64], p: &Placement, v: u32) ->
                 gt[3] + c * gt[4] + r * gt[5],
                 z,
             ]
+        }
+        (XyUnits::Local(frame), Some(gt)) => {
+            let (c, r) = (col as f64 + 0.5, row as f64 + 0.5);
+            frame.enu(
+                gt[0] + c * gt[1] + r * gt[2],
+                gt[3] + c * gt[4] + r * gt[5],
+                z,
+            )
         }
         _ => [col as f64, row as f64, z],
     }

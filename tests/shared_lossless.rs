@@ -1,7 +1,7 @@
 //! Lossless round trip, bit-exact, of every DEM in `../shared/dem` (skipped with a notice
 //! when the folder is absent), plus the max-error guarantee at 1 m on each.
 
-use std::path::Path;
+mod support;
 
 use wavemesh::dem::{read_dem, ReadOptions};
 use wavemesh::report::load_manifest;
@@ -9,11 +9,11 @@ use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality};
 
 #[test]
 fn every_shared_dem_round_trips_bit_exactly() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/dem");
-    if !dir.join("manifest.json").exists() {
-        eprintln!("skipping: ../shared/dem not found");
+    let Some(dir) =
+        support::shared_dem("shared_lossless::every_shared_dem_round_trips_bit_exactly")
+    else {
         return;
-    }
+    };
     let datasets = load_manifest(&dir).unwrap();
     assert!(!datasets.is_empty());
     for dataset in datasets {

@@ -36,7 +36,7 @@ pub enum CodecError {
         height: u64,
     },
     /// Decoding would exceed a configured resource limit.
-    #[error("{what} ({needed}) exceeds the limit ({limit}); raise it (--max-samples, --max-memory) if the file is trusted")]
+    #[error("{what} ({needed}) exceeds the limit ({limit})")]
     LimitExceeded {
         /// What was being limited.
         what: &'static str,
@@ -57,4 +57,8 @@ pub enum CodecError {
     /// The encoder was given parameters it cannot honour.
     #[error("invalid encoder parameters: {0}")]
     InvalidParameters(String),
+    /// The raster holds values the coder cannot represent (an infinite sample, a range
+    /// too wide for exact integer coding); the message says what would code it.
+    #[error("cannot code these samples: {0}")]
+    UnsupportedValues(String),
 }

@@ -28,6 +28,7 @@
 //! coefficient with the bits it has (reconstructed mid-interval by [`Decoder::dequantise`]).
 
 use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel, BitSink};
+use crate::progress::Stage;
 use crate::significance::SignificanceMap;
 use crate::wavelet::{Orientation, Subband};
 
@@ -823,6 +824,17 @@ pub fn encode(
     }
 }
 
+/// Reports `done` of `steps` steps (the passes and the transform), each step a sweep
+/// over every sample (see [`crate::progress`]).
+fn report_pass(layout: &CoefficientLayout, done: u32, steps: u32) {
+    let samples = layout.len() as u64;
+    crate::progress::report(
+        Stage::Coding,
+        samples * u64::from(done),
+        samples * u64::from(steps),
+    );
+}
+
 /// Runs every pass of the encoder over `side`'s sink.
 fn run_encoder<'a, B: BitSink>(
     layout: &CoefficientLayout,
@@ -837,11 +849,15 @@ fn run_encoder<'a, B: BitSink>(
     if let Some(top) = top {
         for n in (0..=top).rev() {
             match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
-                ScanEnd::Finished => passes.push(PassRecord {
-                    plane: n,
-                    end_byte: side.sink.bytes_so_far() as u64,
-                    squared_error: side.squared_error.max(0.0),
-                }),
+                ScanEnd::Finished => {
+                    passes.push(PassRecord {
+                        plane: n,
+                        end_byte: side.sink.bytes_so_far() as u64,
+                        squared_error: side.squared_error.max(0.0),
+                    });
+                    // The transform came first.
+                    report_pass(layout, passes.len() as u32 + 1, top + 2);
+                }
                 ScanEnd::Stopped => {
                     complete = false;
                     break;
@@ -976,7 +992,12 @@ impl Decoder {
                     break;
                 }
                 match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
-                    ScanEnd::Finished => passes_completed += 1,
+                    ScanEnd::Finished => {
+                        passes_completed += 1;
+                        // The inverse transform comes last.
+                        let planned = max_passes.map_or(top + 1, |m| m.min(top + 1));
+                        report_pass(layout, passes_completed, planned + 1);
+                    }
                     ScanEnd::Stopped => {
                         complete = false;
                         break;

@@ -18,6 +18,7 @@
 //! ```
 
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod container;
 pub mod entropy;
@@ -26,6 +27,7 @@ pub mod ezw;
 pub mod fuzzing;
 pub mod mask;
 pub mod pipeline;
+pub mod progress;
 pub mod quantize;
 pub mod raster;
 pub mod residual;

@@ -7,6 +7,7 @@ use crate::ezw::{
     self, CoefficientLayout, ContextChoice, Decoder, Midpoint, MAX_COEFFICIENT_PLANE,
 };
 use crate::mask::{decode_mask, encode_mask, Mask};
+use crate::progress::{self, Stage};
 use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{decode_residuals, encode_residuals};
@@ -273,6 +274,9 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
         .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
         .collect();
 
+    if let Samples::F32(values) = &raster.samples {
+        quantize::check_finite(values, &mask, width)?;
+    }
     let prepared = match options.wavelet {
         Wavelet::Int53 => prepare_53(raster, &mask, options.quality, &norms)?,
         Wavelet::Cdf97 => {
@@ -285,7 +289,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
             // Infinities, or finite samples whose transform overflows f32, leave no finite
             // mean or step for the header (the decoder would refuse the stream).
             if !(prepared.mapping.offset.is_finite() && prepared.coefficient_step.is_finite()) {
-                return Err(CodecError::InvalidParameters(
+                return Err(CodecError::UnsupportedValues(
                     "the 9/7 wavelet needs samples whose transform stays finite in f32".into(),
                 ));
             }
@@ -311,6 +315,9 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
     };
 
     let top = ezw::top_plane(&layout, &prepared.coefficients);
+    let steps = top.map_or(1, |t| u64::from(t) + 2);
+    let samples = (width * height) as u64;
+    progress::report(Stage::Transform, samples, samples * steps);
     let mut header = Header {
         width: width as u32,
         height: height as u32,
@@ -514,11 +521,11 @@ fn prepare_53(
             }
         }
         (Samples::F32(values), Quality::MaxError(e)) => {
-            check_positive(e, "--max-error")?;
+            check_positive(e, "the max error")?;
             (bounded_float_plane(values, mask, e)?, Mode::MaxError, e)
         }
         (Samples::F32(values), Quality::Precision(step)) => {
-            check_positive(step, "--precision")?;
+            check_positive(step, "the precision")?;
             // The grid's half step, plus the rounding of the reconstruction to f32.
             let largest = values.iter().zip(mask).filter(|(_, &m)| m).map(|(v, _)| v.abs() as f64).fold(0.0, f64::max);
             let bound = step / 2.0 + largest * f32::EPSILON as f64;
@@ -526,14 +533,14 @@ fn prepare_53(
         }
         (_, Quality::Lossless) => (quantize::integer_plane(raster, mask, 0.0)?, Mode::Lossless, 0.0),
         (_, Quality::MaxError(e)) => {
-            check_positive(e, "--max-error")?;
+            check_positive(e, "the max error")?;
             let plane = quantize::integer_plane(raster, mask, e)?;
             let mode = if e >= 1.0 { Mode::MaxError } else { Mode::Lossless };
             (plane, mode, e.floor())
         }
         (_, Quality::Precision(_)) => {
             return Err(CodecError::InvalidParameters(
-                "--precision applies to float rasters; integer rasters are coded exactly or with --max-error".into(),
+                "a precision applies to float rasters; integer rasters are coded exactly or with a max error".into(),
             ))
         }
     };
@@ -687,7 +694,7 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_samples: 1 << 30,
+            max_samples: 1 << 31,
             max_memory: 2 << 30,
         }
     }
@@ -986,6 +993,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
             )
         }
     };
+    progress::report(Stage::Transform, 1, 1);
     // The residual section: exact float residuals once the whole stream is decoded, or
     // max-error corrections once the whole (cut) payload is.
     let residual_bytes = residual_framed

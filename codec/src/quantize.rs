@@ -76,10 +76,12 @@ pub fn integer_plane(
     let step = 2.0 * e + 1.0;
     let span = ((max - min) / step).ceil();
     if span > MAX_INTEGER_MAGNITUDE {
-        return Err(CodecError::InvalidParameters(format!(
-            "sample range {} is too wide for the integer coder (at most {} steps); use --max-error",
+        return Err(CodecError::UnsupportedValues(format!(
+            "sample range {} is too wide for the integer coder (at most {} steps of 2E + 1); \
+             a max error of at least {} fits it",
             max - min,
-            MAX_INTEGER_MAGNITUDE
+            MAX_INTEGER_MAGNITUDE,
+            smallest_fitting_error(max - min)
         )));
     }
     let mapping = ValueMapping { offset: min, step };
@@ -99,6 +101,36 @@ pub fn integer_plane(
         mapping,
         residuals: Vec::new(),
     })
+}
+
+/// The smallest integer max error E whose step 2E + 1 spans `range` in at most
+/// [`MAX_INTEGER_MAGNITUDE`] steps.
+fn smallest_fitting_error(range: f64) -> f64 {
+    let mut e = ((range / MAX_INTEGER_MAGNITUDE - 1.0) / 2.0)
+        .ceil()
+        .max(0.0);
+    while (range / (2.0 * e + 1.0)).ceil() > MAX_INTEGER_MAGNITUDE {
+        e += 1.0;
+    }
+    e
+}
+
+/// Refuses infinite valid samples (no step spans them), naming the first one.
+pub fn check_finite(values: &[f32], mask: &[bool], width: usize) -> Result<(), CodecError> {
+    let first = values
+        .iter()
+        .zip(mask)
+        .position(|(v, &valid)| valid && !v.is_finite());
+    match first {
+        None => Ok(()),
+        Some(i) => Err(CodecError::UnsupportedValues(format!(
+            "the sample at row {}, column {} is {}: only finite values can be coded; \
+             make such samples nodata",
+            i / width.max(1),
+            i % width.max(1),
+            values[i]
+        ))),
+    }
 }
 
 /// Grids tried for exact float data, coarsest first.
@@ -153,7 +185,7 @@ pub fn float_plane(
         let q = (v as f64 / step).round();
         if q.abs() > MAX_INTEGER_MAGNITUDE {
             return Err(CodecError::InvalidParameters(format!(
-                "value {v} is more than {MAX_INTEGER_MAGNITUDE} steps of {step} from zero; use a larger --precision"
+                "value {v} is more than {MAX_INTEGER_MAGNITUDE} steps of {step} from zero; a larger precision step fits it"
             )));
         }
         let reconstructed = mapping.value(q) as f32;
@@ -285,6 +317,24 @@ pub fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]
 mod tests {
     use super::*;
     use crate::raster::Samples;
+
+    #[test]
+    fn too_wide_ranges_name_the_error_bound_that_fits() {
+        let full_i32 = 4294967295.0;
+        let e = smallest_fitting_error(full_i32);
+        assert_eq!(e, 32.0);
+        assert!((full_i32 / (2.0 * e + 1.0)).ceil() <= MAX_INTEGER_MAGNITUDE);
+        assert!((full_i32 / (2.0 * (e - 1.0) + 1.0)).ceil() > MAX_INTEGER_MAGNITUDE);
+        assert_eq!(smallest_fitting_error(1000.0), 0.0);
+    }
+
+    #[test]
+    fn infinite_valid_samples_are_named() {
+        let values = [1.0, 2.0, f32::NAN, f32::NEG_INFINITY];
+        assert!(check_finite(&values, &[true, true, false, false], 2).is_ok());
+        let err = check_finite(&values, &[true, true, false, true], 2).unwrap_err();
+        assert!(err.to_string().contains("row 1, column 1 is -inf"), "{err}");
+    }
 
     #[test]
     fn integer_max_error_bound_holds() {

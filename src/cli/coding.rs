@@ -11,7 +11,9 @@ use wavemesh_codec::{
 };
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{
+    print_json, timed, with_codec_progress, CliError, InputArgs, LimitArgs, WaveletArg, Workload,
+};
 
 /// Version of every JSON object the CLI prints.
 pub const SCHEMA_VERSION: u32 = 1;
@@ -70,9 +72,6 @@ pub struct DecodeArgs {
     /// Report PSNR/RMSE/max error of the decoded DEM against this one.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
-    /// Refuse streams that need more decoder memory than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     /// Treat damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix with a warning.
     #[arg(long)]
@@ -80,12 +79,12 @@ pub struct DecodeArgs {
     /// Also write the mesh of the decoder's zerotree (.glb, .obj or .ply).
     #[arg(long, value_name = "MESH")]
     mesh: Option<PathBuf>,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Mesh (with --mesh)")]
     mesh_options: MeshOptions,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Limits, and reading the --reference DEM")]
     input_args: InputArgs,
 }
 
@@ -96,6 +95,8 @@ pub struct InfoArgs {
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    limit_args: LimitArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -140,7 +141,9 @@ struct EncodeReport<'a> {
 
 pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
-    let raster = args.input_args.read(&args.input)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
+    warn_about_output_extension(&args.output);
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let samples = (raster.width * raster.height) as f64;
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
@@ -166,13 +169,16 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         ));
     }
     options.levels = args.levels;
-    let (encoded, seconds, peak) =
-        with_progress("encoding", || timed(|| encode_raster(&raster, &options)));
+    let (encoded, seconds, peak) = with_codec_progress("encoding", Workload::of(&raster), || {
+        timed(|| encode_raster(&raster, &options))
+    });
     let encoded = encoded.map_err(CliError::Encode)?;
     let verified = if args.verify {
-        Some(with_progress("verifying", || {
-            verify_encoding(&raster, &encoded)
-        })?)
+        Some(with_codec_progress(
+            "verifying",
+            Workload::of(&raster),
+            || verify_encoding(&raster, &encoded),
+        )?)
     } else {
         None
     };
@@ -211,7 +217,9 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         verified,
         distortion,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -231,11 +239,26 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             seconds,
             report.encode_msamples_per_second
         );
+        if let Some(v) = &report.verified {
+            println!(
+                "  verified: decoded and checked before writing ({})",
+                verified_promise(v)
+            );
+        }
         if let Some(d) = &report.distortion {
             print_distortion(d);
         }
     }
     Ok(())
+}
+
+/// What `--verify` checked, in words.
+fn verified_promise(d: &Distortion) -> String {
+    if d.identical {
+        "bit-exact".into()
+    } else {
+        format!("max error {} within the bound", d.max_error)
+    }
 }
 
 /// Decodes `encoded` and checks the mode's promise against `raster`.
@@ -244,9 +267,7 @@ fn verify_encoding(
     encoded: &wavemesh_codec::Encoded,
 ) -> Result<Distortion, CliError> {
     let fail = |what: String| {
-        CliError::Encode(wavemesh_codec::CodecError::InvalidParameters(format!(
-            "verification failed: {what}; nothing was written"
-        )))
+        CliError::CheckFailed(format!("verification failed: {what}; nothing was written"))
     };
     let decoded = decode_stream(&encoded.bytes, &DecodeOptions::default())
         .map_err(|e| fail(e.to_string()))?;
@@ -310,9 +331,11 @@ struct DamageReport {
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
+    let to_stdout = writes_to_stdout(&args.output, args.json)?;
     let data = std::fs::read(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let (header, _) = Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let (header, header_len) =
+        Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
         (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {
@@ -325,10 +348,12 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
         (None, bytes) => bytes,
     };
+    let smallest = header_len as u64 + u64::from(header.mask_len);
+    let max_bytes = max_bytes.map(|asked| at_least_decodable(asked, smallest, samples));
     let options = DecodeOptions {
         max_bytes,
         max_passes: None,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         strict: args.strict,
         significance_map: args.mesh.is_some(),
     };
@@ -342,11 +367,15 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         if mesh == &args.output {
             return Err(CliError::Usage("--mesh and -o name the same file".into()));
         }
-        args.mesh_options.check(mesh, samples, args.max_memory)?;
+        args.mesh_options
+            .check(mesh, samples, args.input_args.max_memory())?;
     }
     let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
-    let (decoded, seconds, peak) =
-        with_progress("decoding", || timed(|| decode_stream(&data, &options)));
+    let (decoded, seconds, peak) = with_codec_progress(
+        "decoding",
+        Workload::new(samples, header.sample_type),
+        || timed(|| decode_stream(&data, &options)),
+    );
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     if let Some(d) = decoded.damage {
         eprintln!(
@@ -356,6 +385,10 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             d.offset,
             decoded.bytes_used
         );
+    }
+    if args.mesh.is_some() {
+        args.mesh_options
+            .check_raster(&decoded.raster, &args.input)?;
     }
     wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
     let reference = match &args.reference {
@@ -372,7 +405,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             &args.mesh_options,
             path,
             reference.as_ref(),
-            args.max_memory,
+            args.input_args.max_memory(),
         )?),
         None => None,
     };
@@ -402,7 +435,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         distortion,
         mesh,
     };
-    if args.json {
+    if to_stdout {
+        // The data went to standard output: no report beside it.
+    } else if args.json {
         print_json(&report);
     } else {
         println!(
@@ -476,6 +511,12 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let (w, h) = (header.width as usize, header.height as usize);
     let payload_start = (header_len + header.mask_len as usize) as u64;
+    let samples = header.sample_count();
+    // Counting the valid samples decodes the nodata mask: one bit a sample.
+    let mask_bytes = if header.mask_len > 0 { samples / 8 } else { 0 };
+    args.limit_args
+        .check("the header's raster", samples, mask_bytes)
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
     let valid = if header.mask_len > 0 {
         let framed = data.get(header_len..).unwrap_or(&[]);
         let mask = wavemesh_codec::container::unframe(framed, header.mask_len as usize);
@@ -610,6 +651,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let original = args.input_args.read(&args.original)?;
     let other = args.input_args.read(&args.other)?;
     let distortion = compare_rasters(&original, &other, &args.other)?;
+    let mismatches = distortion.nodata_mismatches;
     if args.json {
         print_json(&CompareReport {
             schema_version: SCHEMA_VERSION,
@@ -619,7 +661,17 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             distortion,
         });
     } else {
+        if mismatches > 0 {
+            println!("VOIDS DIFFER: {mismatches} samples are nodata in one raster and valid in the other; the errors below cover only the samples valid in both");
+        }
         print_distortion(&distortion);
+    }
+    if mismatches > 0 {
+        return Err(CliError::CheckFailed(format!(
+            "{} and {} differ in {mismatches} voids (nodata in one, valid in the other)",
+            args.original.display(),
+            args.other.display()
+        )));
     }
     Ok(())
 }
@@ -650,12 +702,42 @@ fn print_distortion(d: &Distortion) {
     );
 }
 
-fn print_json<T: Serialize>(value: &T) {
-    // serde_json writes non-finite floats as null; infinite PSNR (identical) is thus null.
-    println!(
-        "{}",
-        serde_json::to_string(value).expect("reports serialise")
+/// A prefix of `asked` bytes, raised to `smallest` (the header and nodata mask, the
+/// shortest prefix that decodes) with a note on stderr saying the rate used.
+fn at_least_decodable(asked: u64, smallest: u64, samples: u64) -> u64 {
+    if asked >= smallest {
+        return asked;
+    }
+    eprintln!(
+        "wavemesh: note: {asked} bytes is less than the smallest decodable prefix; decoding {smallest} bytes ({:.4} bpp): the header and nodata mask",
+        smallest as f64 * 8.0 / samples as f64
     );
+    smallest
+}
+
+/// Whether the output is `-` (standard output, where no report is printed then);
+/// `--json` would share standard output with the data and is refused.
+fn writes_to_stdout(output: &Path, json: bool) -> Result<bool, CliError> {
+    let to_stdout = output.as_os_str() == "-";
+    if to_stdout && json {
+        return Err(CliError::Usage(
+            "-o - writes the data to standard output; --json cannot share it".into(),
+        ));
+    }
+    Ok(to_stdout)
+}
+
+/// Warns when an `.ezw` stream is about to be written under a DEM file's extension.
+fn warn_about_output_extension(output: &Path) {
+    let ext = output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if let Some(ext) = ext.filter(|e| e != "ezw") {
+        eprintln!(
+            "wavemesh: warning: {}: writing a .ezw stream under a .{ext} name (decode makes DEM files)",
+            output.display()
+        );
+    }
 }
 
 /// Refuses to write over the input file.

@@ -17,20 +17,25 @@ use wavemesh_codec::{
 };
 
 use super::coding::{compare_rasters, write_output, SCHEMA_VERSION};
-use super::{timed, CliError, InputArgs};
+use super::mesh::uncovered_note;
+use super::{print_json, timed, CliError, InputArgs};
 
-/// The sample the demo uses when none is given.
-const DEFAULT_SAMPLE: &str = "samples/jacksboro_fault.tif";
+/// The sample the demo uses when none is given, built into the binary so that an
+/// installed `wavemesh demo` runs anywhere.
+const BUNDLED_SAMPLE: &[u8] = include_bytes!("../../samples/jacksboro_fault.tif");
+
+/// The name the bundled sample gets in the output folder.
+const BUNDLED_NAME: &str = "jacksboro_fault.tif";
 
 /// Height tolerance of the demo's mesh, data units (metres for the sample).
 const MESH_TOLERANCE: f64 = 5.0;
 
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
-    /// DEM to run on (default: the bundled samples/jacksboro_fault.tif).
+    /// DEM to run on (default: the sample built into the binary, USGS jacksboro_fault).
     input: Option<PathBuf>,
-    /// Where to write the encoded and decoded files.
-    #[arg(long, default_value = "target/wavemesh-demo")]
+    /// Where to write the encoded and decoded files (and the bundled sample).
+    #[arg(long, default_value = "wavemesh-demo")]
     out_dir: PathBuf,
     /// Print one JSON object on stdout instead of the table.
     #[arg(long)]
@@ -86,16 +91,14 @@ struct DemoReport<'a> {
     tables: Vec<TableRow>,
 }
 
-fn sample_path(args: &DemoArgs) -> PathBuf {
+/// The DEM to run on: the one given, else the bundled sample written into `out_dir`.
+fn sample_path(args: &DemoArgs) -> Result<PathBuf, CliError> {
     if let Some(p) = &args.input {
-        return p.clone();
+        return Ok(p.clone());
     }
-    let local = PathBuf::from(DEFAULT_SAMPLE);
-    if local.exists() {
-        local
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SAMPLE)
-    }
+    let path = args.out_dir.join(BUNDLED_NAME);
+    write_output(&path, BUNDLED_SAMPLE)?;
+    Ok(path)
 }
 
 fn encode_or_fail(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, f64), CliError> {
@@ -133,10 +136,8 @@ fn demo_mesh(raster: &Raster, lossless: &Encoded, path: &Path) -> Result<DemoMes
             error.max_error
         )));
     }
-    let placement = match &raster.georef {
-        Some(g) => Placement::georeferenced(g.geotransform, 1.0),
-        None => Placement::default(),
-    };
+    let placement = Placement::metric(raster.georef.as_ref(), raster.width, raster.height, 1.0)
+        .map_err(|e| CliError::Input(PathBuf::from("sample"), e.to_string()))?;
     let format = MeshFormat::Glb;
     let start = Instant::now();
     write_mesh(path, mesh, &surface.heights, &placement, format)
@@ -190,11 +191,11 @@ fn decode_row(
 }
 
 pub fn run(args: &DemoArgs) -> Result<(), CliError> {
-    let path = sample_path(args);
-    let raster = args.input_args.read(&path)?;
-    let samples = (raster.width * raster.height) as f64;
     std::fs::create_dir_all(&args.out_dir)
         .map_err(|e| CliError::Output(args.out_dir.clone(), e.to_string()))?;
+    let path = sample_path(args)?;
+    let raster = args.input_args.read_to_encode(&path)?;
+    let samples = (raster.width * raster.height) as f64;
     let mut rows = Vec::new();
 
     // Lossless 5/3.
@@ -294,10 +295,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         tables,
     };
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(&report).expect("reports serialise")
-        );
+        print_json(&report);
         return Ok(());
     }
     println!(
@@ -339,10 +337,11 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         m.remaining_percent
     );
     println!(
-        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
+        "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{}; decode {:.3} s, error pyramid {:.3} s, mesh {:.3} s, write {:.3} s ({} bytes)",
         m.error.rmse,
         m.error.psnr_db,
         m.error.max_error,
+        uncovered_note(&m.error),
         m.decode_seconds,
         m.pyramid_seconds,
         m.mesh_seconds,

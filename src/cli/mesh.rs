@@ -9,13 +9,14 @@ use serde::Serialize;
 use wavemesh::lod::{self, build_mesh, decoded_plane, plane_of_threshold, Surface, TableRows};
 use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
+use wavemesh::mesh::frame::FrameError;
 use wavemesh::mesh::rasterise::{mesh_error, MeshError};
 use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
 use super::meshers::{mesh_direct, MethodArg};
-use super::{timed, with_progress, CliError, InputArgs, WaveletArg};
+use super::{timed, with_codec_progress, with_progress, CliError, InputArgs, WaveletArg, Workload};
 use wavemesh::meshers;
 
 /// Which coefficients split a cell.
@@ -39,8 +40,12 @@ pub enum SearchArg {
 /// Output x/y units.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum XyArg {
-    /// Georeferenced x/y (pixel centres through the geotransform; pixel units without one).
+    /// Metres: geographic (longitude/latitude) DEMs in the east-north-up frame at their
+    /// centre on WGS 84; projected DEMs in their CRS's x/y; pixel units without
+    /// georeferencing.
     Geo,
+    /// The CRS's own x/y, untransformed: degrees for geographic DEMs.
+    Degrees,
     /// x = column, y = row of the grid, z = stored value × z-scale.
     Pixel,
 }
@@ -99,8 +104,8 @@ impl MeshOptions {
         let (target, _) = self.target(0)?;
         let needed = mesh_memory(samples, target);
         if needed > max_memory {
-            return Err(CliError::Usage(format!(
-                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}"
+            return Err(CliError::OverLimit(format!(
+                "meshing {samples} samples may need {needed} bytes, more than --max-memory {max_memory}; raise it if the machine has it"
             )));
         }
         Ok(())
@@ -166,18 +171,46 @@ impl MeshOptions {
         })
     }
 
-    fn placement(&self, raster: &Raster) -> Placement {
-        match self.xy {
+    /// Where the samples of `raster` go in the mesh file.
+    fn placement(&self, raster: &Raster) -> Result<Placement, FrameError> {
+        let georef = raster.georef.as_ref();
+        Ok(match self.xy {
             XyArg::Pixel => Placement::pixel(self.z_scale),
-            XyArg::Geo => match &raster.georef {
-                Some(g) => Placement::georeferenced(g.geotransform, self.z_scale),
-                None => Placement {
-                    z_scale: self.z_scale,
-                    ..Placement::default()
-                },
-            },
-        }
+            XyArg::Degrees => Placement::crs_units(georef, self.z_scale),
+            XyArg::Geo => Placement::metric(georef, raster.width, raster.height, self.z_scale)?,
+        })
     }
+
+    /// Checks that `raster` (read from `input`) can be meshed as asked: it has a 2 × 2
+    /// block of valid samples (a 1 × N or all-nodata raster has no triangle) and its
+    /// georeferencing fits the chosen x/y units. Callers run it before writing anything.
+    pub fn check_raster(&self, raster: &Raster, input: &Path) -> Result<(), CliError> {
+        let refuse = |message: String| CliError::Input(input.to_path_buf(), message);
+        if !has_valid_cell(raster) {
+            return Err(refuse(format!(
+                "nothing to mesh: the {} × {} raster has no 2 × 2 block of valid samples",
+                raster.width, raster.height
+            )));
+        }
+        self.placement(raster)
+            .map(|_| ())
+            .map_err(|e| refuse(e.to_string()))
+    }
+}
+
+/// Whether some 2 × 2 block of `raster` is all valid samples (the smallest cell the
+/// mesher triangulates; cells touching nodata are left out).
+fn has_valid_cell(raster: &Raster) -> bool {
+    let w = raster.width;
+    (1..raster.height).any(|row| {
+        (1..w).any(|col| {
+            let top = (row - 1) * w + col;
+            let bottom = row * w + col;
+            [top - 1, top, bottom - 1, bottom]
+                .iter()
+                .all(|&i| raster.is_valid(i))
+        })
+    })
 }
 
 /// The mesh part of a JSON report.
@@ -194,7 +227,10 @@ pub struct MeshReport {
     cells: usize,
     refinement_splits: usize,
     remaining_percent: f64,
+    /// `pixel`, `georeferenced` (the CRS's own x/y) or `local_enu` (metres).
     xy_units: &'static str,
+    /// The frame as the file records it (name, CRS, `z_scale`, local origin).
+    frame: serde_json::Value,
     /// Against the heights the mesh is built from (the decoded DEM).
     error_vs_decoded: MeshError,
     /// Against the original DEM (`--reference`, or the input of `mesh`).
@@ -210,7 +246,8 @@ pub struct MeshReport {
     file_bytes: u64,
 }
 
-/// Meshes a decode (made with the significance map) and writes the mesh to `path`.
+/// Meshes a decode (made with the significance map) and writes the mesh to `path`; the
+/// caller has checked the decoded raster with [`MeshOptions::check_raster`].
 pub fn mesh_decoded(
     decoded: &Decoded,
     options: &MeshOptions,
@@ -245,7 +282,9 @@ pub fn mesh_decoded(
         mesh_error(mesh, &surface.heights, &reference.heights, &reference.valid)
     });
     let measure_seconds = start.elapsed().as_secs_f64();
-    let placement = options.placement(&decoded.raster);
+    let placement = options
+        .placement(&decoded.raster)
+        .map_err(|e| CliError::Input(path.to_path_buf(), e.to_string()))?;
     let start = Instant::now();
     write_mesh(path, mesh, &surface.heights, &placement, format)
         .map_err(|e| CliError::Output(path.to_path_buf(), e.to_string()))?;
@@ -266,11 +305,8 @@ pub fn mesh_decoded(
         cells: timed_mesh.cells,
         refinement_splits: timed_mesh.refinement_splits,
         remaining_percent: 100.0 * mesh.triangles.len() as f64 / full.max(1) as f64,
-        xy_units: if placement.xy_fallback() || options.xy == XyArg::Pixel {
-            "pixel"
-        } else {
-            "georeferenced"
-        },
+        xy_units: placement.frame_name(),
+        frame: placement.frame_record(),
         error_vs_decoded,
         error_vs_original,
         mesh_bytes_in_memory: mesh.heap_bytes(),
@@ -298,6 +334,16 @@ fn mesh_memory(samples: u64, target: MeshTarget) -> u64 {
 
 /// The mesh format of `path`'s extension.
 fn mesh_format(path: &Path) -> Result<MeshFormat, CliError> {
+    if path.as_os_str() == "-" {
+        return Err(CliError::Usage(
+            "meshes are not written to standard output (-); name a file, a device or a FIFO".into(),
+        ));
+    }
+    // A device or FIFO has no extension to go by: binary glTF, the one-file format.
+    let is_stream = wavemesh::atomic::destination(path).is_ok_and(|d| d.is_stream());
+    if path.extension().is_none() && is_stream {
+        return Ok(MeshFormat::Glb);
+    }
     MeshFormat::from_path(path).ok_or_else(|| {
         CliError::Usage(format!(
             "{}: unknown mesh format (use .glb, .obj or .ply)",
@@ -323,16 +369,33 @@ pub fn print_mesh_summary(report: &MeshReport) {
         report.remaining_percent,
         report.mesh_seconds + report.pyramid_seconds
     );
-    let e = &report.error_vs_decoded;
-    println!(
-        "  vs decoded DEM:  RMSE {:.4}  PSNR {:.2} dB  max error {:.4}",
-        e.rmse, e.psnr_db, e.max_error
-    );
+    print_mesh_error("vs decoded DEM: ", &report.error_vs_decoded);
     if let Some(e) = &report.error_vs_original {
-        println!(
-            "  vs original DEM: RMSE {:.4}  PSNR {:.2} dB  max error {:.4}",
-            e.rmse, e.psnr_db, e.max_error
-        );
+        print_mesh_error("vs original DEM:", e);
+    }
+}
+
+/// One line of a mesh's errors, with [`uncovered_note`].
+fn print_mesh_error(label: &str, e: &MeshError) {
+    println!(
+        "  {label} RMSE {:.4}  PSNR {:.2} dB  max error {:.4}{}",
+        e.rmse,
+        e.psnr_db,
+        e.max_error,
+        uncovered_note(e)
+    );
+}
+
+/// What follows a mesh's errors when it leaves valid samples uncovered (cut off by
+/// nodata), which the errors do not include; empty when it covers them all.
+pub fn uncovered_note(e: &MeshError) -> String {
+    if e.uncovered_samples > 0 {
+        format!(
+            "  over {} covered samples; {} valid samples uncovered",
+            e.compared_samples, e.uncovered_samples
+        )
+    } else {
+        String::new()
     }
 }
 
@@ -346,9 +409,6 @@ pub struct MeshArgs {
     /// Encode lossy (9/7) at this many bits per sample before meshing (default lossless).
     #[arg(long)]
     bpp: Option<f64>,
-    /// Refuse DEMs whose decode or mesh may need more than this many bytes.
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
     #[command(flatten)]
     mesh: MeshOptions,
     /// Which mesher: the zerotree (after an encode and decode) or one straight from the
@@ -383,12 +443,19 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
             "the output would overwrite the input".into(),
         ));
     }
-    let raster = args.input_args.read(&args.input)?;
-    args.mesh
-        .check(&args.output, raster.len() as u64, args.max_memory)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
+    args.mesh.check(
+        &args.output,
+        raster.len() as u64,
+        args.input_args.max_memory(),
+    )?;
+    args.mesh.check_raster(&raster, &args.input)?;
     if args.method != MethodArg::Zerotree {
         let budget = args.mesh.direct_budget(raster.len())?;
-        let placement = args.mesh.placement(&raster);
+        let placement = args
+            .mesh
+            .placement(&raster)
+            .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
         let paths = (args.input.as_path(), args.output.as_path());
         return mesh_direct(args.method, &raster, budget, &placement, paths, args.json);
     }
@@ -405,23 +472,26 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
     };
     let options = EncodeOptions::new(Quality::Lossless, budget);
     let (encoded, encode_seconds, _) =
-        with_progress("encoding", || timed(|| encode(&raster, &options)));
+        with_codec_progress("encoding", Workload::of(&raster), || {
+            timed(|| encode(&raster, &options))
+        });
     let encoded = encoded.map_err(CliError::Encode)?;
     let decode_options = DecodeOptions {
         significance_map: true,
-        limits: args.input_args.limits(args.max_memory),
+        limits: args.input_args.limits(),
         ..DecodeOptions::default()
     };
-    let (decoded, decode_seconds, decode_peak) = with_progress("decoding", || {
-        timed(|| decode(&encoded.bytes, &decode_options))
-    });
+    let (decoded, decode_seconds, decode_peak) =
+        with_codec_progress("decoding", Workload::of(&raster), || {
+            timed(|| decode(&encoded.bytes, &decode_options))
+        });
     let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
     let mesh = mesh_decoded(
         &decoded,
         &args.mesh,
         &args.output,
         Some(&raster),
-        args.max_memory,
+        args.input_args.max_memory(),
     )?;
     let report = MeshCommandReport {
         schema_version: SCHEMA_VERSION,
@@ -511,7 +581,7 @@ struct TableReport<'a> {
 }
 
 pub fn table(args: &TableArgs) -> Result<(), CliError> {
-    let raster = args.input_args.read(&args.input)?;
+    let raster = args.input_args.read_to_encode(&args.input)?;
     let rows = match (&args.thresholds, &args.bpp) {
         (Some(ts), _) => {
             if let Some(t) = ts.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
@@ -541,8 +611,10 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         options.wavelet = args.wavelet.into();
         options.budget_bytes = Some((top * raster.len() as f64 / 8.0).ceil() as u64);
     }
-    let encoded =
-        with_progress("encoding", || encode(&raster, &options)).map_err(CliError::Encode)?;
+    let encoded = with_codec_progress("encoding", Workload::of(&raster), || {
+        encode(&raster, &options)
+    })
+    .map_err(CliError::Encode)?;
     let rule = match args.rule {
         RuleArg::Zerotree => SplitRule::Zerotree,
         RuleArg::Own => SplitRule::OwnCoefficients,

@@ -6,7 +6,7 @@ use serde::Serialize;
 use wavemesh_codec::container::verify as verify_file;
 
 use super::coding::SCHEMA_VERSION;
-use super::CliError;
+use super::{print_json, CliError};
 
 #[derive(Debug, clap::Args)]
 pub struct VerifyArgs {
@@ -78,10 +78,7 @@ pub fn run(args: &VerifyArgs) -> Result<(), CliError> {
         total_passes: found.header.top_plane.map_or(0, |t| t as u32 + 1),
     };
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(&report).expect("reports serialise")
-        );
+        print_json(&report);
     } else {
         println!(
             "{}: {} bytes, header {} bytes, checksum ok",

@@ -11,7 +11,7 @@
 use std::io::{self, BufRead, Write};
 use std::path::Path;
 
-use wavemesh_codec::{Georef, Raster, Samples};
+use wavemesh_codec::{Georef, Raster, SampleType, Samples};
 
 use super::{checked_sample_count, make_raster, read_error, DemError, ReadOptions};
 
@@ -219,7 +219,7 @@ pub(super) fn read<R: BufRead>(
         header.set(&key, value, line_no)?;
     }
     let (ncols, nrows, geotransform) = header.finish()?;
-    let count = checked_sample_count(ncols, nrows, options)?;
+    let count = checked_sample_count(ncols, nrows, SampleType::F32, options)?;
 
     // Grow as values arrive rather than trusting the header with a huge allocation.
     let mut values = Values::Int(Vec::with_capacity(count.min(1 << 20)));
@@ -305,13 +305,35 @@ pub(super) fn write(raster: &Raster, w: &mut dyn Write) -> io::Result<()> {
         writeln!(w, "dx {dx}")?;
         writeln!(w, "dy {dy}")?;
     }
+    let nan_stand_in = nan_nodata_stand_in(raster);
     if let Some(nd) = raster.nodata {
         match raster.samples {
-            Samples::F32(_) => writeln!(w, "NODATA_value {}", nd as f32)?,
+            Samples::F32(_) => writeln!(w, "NODATA_value {}", nan_stand_in.unwrap_or(nd as f32))?,
             _ if nd.fract() == 0.0 && nd.abs() < 1e18 => writeln!(w, "NODATA_value {}", nd as i64)?,
             _ => writeln!(w, "NODATA_value {nd}")?,
         }
     }
+    write_rows(raster, nan_stand_in, w)
+}
+
+/// For `f32` rasters whose nodata is NaN: a finite value no valid sample holds, written
+/// for the voids instead of `NaN` (GDAL before 3.7 cannot read a `NaN` token).
+fn nan_nodata_stand_in(raster: &Raster) -> Option<f32> {
+    let Samples::F32(values) = &raster.samples else {
+        return None;
+    };
+    if !raster.nodata.is_some_and(f64::is_nan) {
+        return None;
+    }
+    let candidates = [-9999.0f32, -99999.0, -999999.0, -3.4028235e38, 3.4028235e38];
+    candidates
+        .into_iter()
+        .find(|c| !values.contains(c))
+        .or(Some(-9999.0))
+}
+
+/// Writes the data lines, with `nan_stand_in` for NaN samples when given.
+fn write_rows(raster: &Raster, nan_stand_in: Option<f32>, w: &mut dyn Write) -> io::Result<()> {
     let mut row = String::new();
     for r in 0..raster.height {
         row.clear();
@@ -321,7 +343,10 @@ pub(super) fn write(raster: &Raster, w: &mut dyn Write) -> io::Result<()> {
             Samples::U16(v) => join(&mut row, &v[range]),
             Samples::I16(v) => join(&mut row, &v[range]),
             Samples::I32(v) => join(&mut row, &v[range]),
-            Samples::F32(v) => join(&mut row, &v[range]),
+            Samples::F32(v) => match nan_stand_in {
+                Some(stand_in) => join_floats(&mut row, &v[range], stand_in),
+                None => join(&mut row, &v[range]),
+            },
         }
         row.push('\n');
         w.write_all(row.as_bytes())?;
@@ -336,6 +361,19 @@ fn join<T: std::fmt::Display>(out: &mut String, values: &[T]) {
         if i > 0 {
             out.push(' ');
         }
+        // Writing to a String cannot fail.
+        let _ = write!(out, "{v}");
+    }
+}
+
+/// [`join`] for floats, with `nan_stand_in` written for every NaN.
+fn join_floats(out: &mut String, values: &[f32], nan_stand_in: f32) {
+    use std::fmt::Write as _;
+    for (i, v) in values.iter().enumerate() {
+        if i > 0 {
+            out.push(' ');
+        }
+        let v = if v.is_nan() { nan_stand_in } else { *v };
         // Writing to a String cannot fail.
         let _ = write!(out, "{v}");
     }
@@ -452,8 +490,11 @@ mod tests {
     fn absurd_header_is_refused_before_allocating() {
         let text = "ncols 100000000\nnrows 100000000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1\n";
         assert!(matches!(parse(text), Err(DemError::TooLarge { .. })));
-        // Within the limit but lying: no huge allocation, just a count mismatch.
+        // Over the memory limit: refused before reading a value.
         let text = "ncols 40000\nnrows 40000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1\n";
+        assert!(matches!(parse(text), Err(DemError::OverMemory { .. })));
+        // Within the limits but lying: no huge allocation, just a count mismatch.
+        let text = "ncols 20000\nnrows 20000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1\n";
         assert!(matches!(parse(text), Err(DemError::Malformed(_))));
     }
 
@@ -504,7 +545,7 @@ mod tests {
             f32::MIN_POSITIVE,
             f32::NAN,
             1234.5677,
-            f32::INFINITY,
+            -9999.0,
             -0.0,
         ];
         let mut r = Raster::new(4, 2, Samples::F32(values.clone())).unwrap();
@@ -519,10 +560,18 @@ mod tests {
         let Samples::F32(got) = &back.samples else {
             panic!("type")
         };
+        // NaN voids are written as a finite stand-in no valid sample holds (-9999 is
+        // taken here), so that every GDAL since 2.x reads the grid; no line holds "NaN".
+        assert!(text.contains("NODATA_value -99999\n"), "{text}");
+        assert!(!text.to_ascii_lowercase().contains("nan"), "{text}");
         for (a, b) in values.iter().zip(got) {
-            assert_eq!(a.to_bits(), b.to_bits());
+            if a.is_nan() {
+                assert_eq!(*b, -99999.0);
+            } else {
+                assert_eq!(a.to_bits(), b.to_bits());
+            }
         }
-        assert!(back.nodata.unwrap().is_nan());
+        assert_eq!(back.nodata, Some(-99999.0));
         assert_eq!(back.georef, r.georef);
     }
 

@@ -49,8 +49,9 @@ pub(super) fn read<R: Read + Seek>(
     let err = |e| tiff_error(path, e);
     let mut decoder = Decoder::new(reader).map_err(err)?;
     let (width, height) = decoder.dimensions().map_err(err)?;
-    let count = checked_sample_count(u64::from(width), u64::from(height), options)?;
     let sample_type = sample_type(&mut decoder, path)?;
+    let count = checked_sample_count(u64::from(width), u64::from(height), sample_type, options)?;
+    check_compression(&mut decoder, path, options)?;
 
     let bytes = count.saturating_mul(sample_type.bytes());
     let mut limits = Limits::default();
@@ -77,6 +78,36 @@ pub(super) fn read<R: Read + Seek>(
     raster.nodata = nodata;
     raster.georef = georef;
     Ok(raster)
+}
+
+/// TIFF `Compression` values whose decoded samples differ from what was written.
+const LOSSY_COMPRESSIONS: [(u16, &str); 4] = [
+    (6, "old-style JPEG"),
+    (7, "JPEG"),
+    (34892, "lossy JPEG"),
+    (50001, "WebP"),
+];
+
+/// Refuses lossy-compressed samples unless `options.accept_lossy`: different JPEG
+/// decoders reconstruct them ±1 differently, so "lossless" would hold only against ours.
+fn check_compression<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(), DemError> {
+    let compression = decoder
+        .find_tag_unsigned::<u16>(Tag::Compression)
+        .map_err(|e| tiff_error(path, e))?;
+    let lossy = LOSSY_COMPRESSIONS
+        .iter()
+        .find(|(code, _)| Some(*code) == compression);
+    match lossy {
+        Some((_, name)) if !options.accept_lossy => Err(DemError::LossyInput(format!(
+            "the TIFF's samples are {name}-compressed (lossy): decoders disagree on them by \
+             ±1, so no encoding of them can be bit-exact against another reader's"
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The sample type from the colour type and SampleFormat tag, refusing what is not a

@@ -5,7 +5,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use wavemesh_codec::{Georef, Raster, Samples};
+use wavemesh_codec::{Georef, Raster, SampleType, Samples};
 
 use super::{checked_sample_count, make_raster, read_error, DemError, ReadOptions};
 
@@ -94,7 +94,7 @@ pub(super) fn read<R: Read>(
              25,934,402 for SRTM1 3601 x 3601); {len} bytes is not 2·n² for any n >= 2"
         ))
     })?;
-    let count = checked_sample_count(n, n, options)?;
+    let count = checked_sample_count(n, n, SampleType::I16, options)?;
     let mut bytes = vec![0; count * 2];
     reader
         .read_exact(&mut bytes)

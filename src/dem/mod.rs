@@ -18,7 +18,7 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Raster, Samples};
+use wavemesh_codec::{Raster, SampleType, Samples};
 
 use crate::atomic::write_atomic;
 
@@ -51,8 +51,7 @@ pub enum DemError {
     Malformed(String),
     /// The raster is larger than [`ReadOptions::max_samples`] allows.
     #[error(
-        "raster of {width} x {height} = {} samples exceeds the limit of {limit} samples; \
-         raise max_samples if the file is trusted",
+        "raster of {width} x {height} = {} samples exceeds the limit of {limit} samples",
         u128::from(*width) * u128::from(*height)
     )]
     TooLarge {
@@ -63,6 +62,28 @@ pub enum DemError {
         /// The configured limit on `width × height`.
         limit: u64,
     },
+    /// Reading the raster and the work after it would take more than
+    /// [`ReadOptions::max_memory`] bytes.
+    #[error(
+        "raster of {width} x {height} {sample_type} samples needs about {needed} bytes of \
+         memory, more than the limit of {limit} bytes"
+    )]
+    OverMemory {
+        /// Width the file claims.
+        width: u64,
+        /// Height the file claims.
+        height: u64,
+        /// The sample type the memory was counted for.
+        sample_type: &'static str,
+        /// Bytes the raster and the caller's work on it need.
+        needed: u128,
+        /// The configured limit.
+        limit: u64,
+    },
+    /// The file's samples went through lossy compression (JPEG...): reading them back is
+    /// not exact, so a "lossless" encoding would only be exact against this reader.
+    #[error("{0}")]
+    LossyInput(String),
     /// The raster handed to a writer is inconsistent (sample count ≠ width × height).
     #[error("invalid raster: {0}")]
     InvalidRaster(String),
@@ -92,6 +113,15 @@ fn read_error(path: &Path, source: io::Error) -> DemError {
     }
 }
 
+/// Memory the caller will need per sample after reading, besides the raster itself.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WorkMemory {
+    /// Bytes a sample for integer rasters.
+    pub integer: u64,
+    /// Bytes a sample for floating-point rasters.
+    pub float: u64,
+}
+
 /// Options for [`read_dem`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ReadOptions {
@@ -99,6 +129,14 @@ pub struct ReadOptions {
     pub terrain_rgb: bool,
     /// Largest accepted `width × height`; checked before any sample buffer is allocated.
     pub max_samples: u64,
+    /// Largest memory (bytes) the raster plus `work` may take: `width × height ×
+    /// (sample bytes + work bytes)`, checked from the declared size before any sample
+    /// buffer is allocated (a small compressed file can declare a huge raster).
+    pub max_memory: u64,
+    /// What the caller allocates per sample once the raster is read (0 to just read).
+    pub work: WorkMemory,
+    /// Accept samples that went through lossy compression (JPEG-in-TIFF...).
+    pub accept_lossy: bool,
 }
 
 impl Default for ReadOptions {
@@ -106,12 +144,21 @@ impl Default for ReadOptions {
         ReadOptions {
             terrain_rgb: false,
             max_samples: 1 << 31,
+            max_memory: 2 << 30,
+            work: WorkMemory::default(),
+            accept_lossy: false,
         }
     }
 }
 
-/// Checks claimed dimensions against `options.max_samples` and returns the sample count.
-fn checked_sample_count(width: u64, height: u64, options: &ReadOptions) -> Result<usize, DemError> {
+/// Checks claimed dimensions against `options.max_samples` and, for samples of
+/// `sample_type`, the memory against `options.max_memory`; returns the sample count.
+fn checked_sample_count(
+    width: u64,
+    height: u64,
+    sample_type: SampleType,
+    options: &ReadOptions,
+) -> Result<usize, DemError> {
     if width == 0 || height == 0 {
         return Err(DemError::Malformed(format!(
             "raster is {width} x {height}; expected a positive width and height"
@@ -122,10 +169,25 @@ fn checked_sample_count(width: u64, height: u64, options: &ReadOptions) -> Resul
         height,
         limit: options.max_samples,
     };
-    match width.checked_mul(height) {
-        Some(n) if n <= options.max_samples => usize::try_from(n).map_err(|_| too_large),
-        _ => Err(too_large),
+    let count = match width.checked_mul(height) {
+        Some(n) if n <= options.max_samples => usize::try_from(n).map_err(|_| too_large)?,
+        _ => return Err(too_large),
+    };
+    let work = match sample_type {
+        SampleType::F32 => options.work.float,
+        _ => options.work.integer,
+    };
+    let needed = count as u128 * (sample_type.bytes() as u128 + u128::from(work));
+    if needed > u128::from(options.max_memory) {
+        return Err(DemError::OverMemory {
+            width,
+            height,
+            sample_type: sample_type.name(),
+            needed,
+            limit: options.max_memory,
+        });
     }
+    Ok(count)
 }
 
 /// Builds a raster from decoded samples whose count the reader has already checked.
@@ -231,7 +293,8 @@ pub fn read_dem(path: &Path, options: &ReadOptions) -> Result<Raster, DemError> 
 }
 
 /// Writes `raster` to `path` atomically, in the format given by the extension:
-/// `.tif`/`.tiff` (GeoTIFF), `.png` (grayscale PNG) or `.asc` (ESRI ASCII grid).
+/// `.tif`/`.tiff` (GeoTIFF), `.png` (grayscale PNG) or `.asc` (ESRI ASCII grid); GeoTIFF
+/// to `-` (standard output), a device or a FIFO without an extension.
 ///
 /// Rasters a format cannot hold (float or negative samples in PNG, a rotated
 /// geotransform in `.asc`) are refused with [`DemError::Unsupported`] before anything is
@@ -247,7 +310,7 @@ fn write_by_extension(path: &Path, raster: &Raster) -> Result<(), DemError> {
         path: path.to_path_buf(),
         source,
     };
-    match extension(path).as_str() {
+    match output_extension(path).as_str() {
         "tif" | "tiff" => {
             let bytes = geotiff::encode(raster)?;
             write_atomic(path, |w| w.write_all(&bytes)).map_err(io_error)
@@ -263,6 +326,18 @@ fn write_by_extension(path: &Path, raster: &Raster) -> Result<(), DemError> {
         other => Err(DemError::Unsupported(format!(
             "cannot write '.{other}' files; expected a .tif, .tiff, .png or .asc extension"
         ))),
+    }
+}
+
+/// The extension that picks the output format: a stream without one (`-`, a device, a
+/// FIFO) gets GeoTIFF, the format that carries everything.
+fn output_extension(path: &Path) -> String {
+    let ext = extension(path);
+    let is_stream = crate::atomic::destination(path).is_ok_and(|d| d.is_stream());
+    if ext.is_empty() && is_stream {
+        "tif".into()
+    } else {
+        ext
     }
 }
 
@@ -334,23 +409,60 @@ mod tests {
             max_samples: 100,
             ..opts()
         };
-        assert_eq!(checked_sample_count(10, 10, &small).unwrap(), 100);
+        assert_eq!(
+            checked_sample_count(10, 10, SampleType::I16, &small).unwrap(),
+            100
+        );
         assert!(matches!(
-            checked_sample_count(10, 11, &small),
+            checked_sample_count(10, 11, SampleType::I16, &small),
             Err(DemError::TooLarge { .. })
         ));
         assert!(matches!(
-            checked_sample_count(u64::MAX, u64::MAX, &opts()),
+            checked_sample_count(u64::MAX, u64::MAX, SampleType::I16, &opts()),
             Err(DemError::TooLarge { .. })
         ));
         assert!(matches!(
-            checked_sample_count(0, 5, &opts()),
+            checked_sample_count(0, 5, SampleType::I16, &opts()),
             Err(DemError::Malformed(_))
         ));
-        let msg = checked_sample_count(1 << 20, 1 << 20, &opts())
+        let msg = checked_sample_count(1 << 20, 1 << 20, SampleType::I16, &opts())
             .unwrap_err()
             .to_string();
         assert!(msg.contains("1099511627776 samples"), "{msg}");
+    }
+
+    #[test]
+    fn memory_limit_counts_the_sample_type_and_the_work() {
+        let budget = ReadOptions {
+            max_memory: 1000,
+            work: WorkMemory {
+                integer: 8,
+                float: 36,
+            },
+            ..opts()
+        };
+        // 10 × 10 i16: 100 × (2 + 8) = 1000 bytes fits; f32: 100 × (4 + 36) does not.
+        assert_eq!(
+            checked_sample_count(10, 10, SampleType::I16, &budget).unwrap(),
+            100
+        );
+        let err = checked_sample_count(10, 10, SampleType::F32, &budget).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                DemError::OverMemory {
+                    needed: 4000,
+                    limit: 1000,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        // 40000 × 40000 i16 (a 320 KB sparse GeoTIFF can declare it) is refused by default.
+        assert!(matches!(
+            checked_sample_count(40000, 40000, SampleType::I16, &opts()),
+            Err(DemError::OverMemory { .. })
+        ));
     }
 
     fn sample_raster() -> Raster {

@@ -6,7 +6,7 @@ use std::io::{BufRead, Seek};
 use std::path::Path;
 
 use ::png::{BitDepth, ColorType, DecodingError, Transformations};
-use wavemesh_codec::{Raster, Samples};
+use wavemesh_codec::{Raster, SampleType, Samples};
 
 use super::{checked_sample_count, make_raster, read_error, DemError, ReadOptions};
 
@@ -56,7 +56,15 @@ pub(super) fn decode<R: BufRead + Seek>(
     decoder.set_transformations(Transformations::IDENTITY);
     let header = decoder.read_header_info().map_err(err)?;
     let (width, height) = (header.width, header.height);
-    checked_sample_count(u64::from(width), u64::from(height), options)?;
+    // What the pixels become: Terrain-RGB heights are f32, 16-bit grey u16, else u8.
+    let sample_type = if options.terrain_rgb {
+        SampleType::F32
+    } else if header.bit_depth == BitDepth::Sixteen {
+        SampleType::U16
+    } else {
+        SampleType::U8
+    };
+    checked_sample_count(u64::from(width), u64::from(height), sample_type, options)?;
     let mut reader = decoder.read_info().map_err(err)?;
     let size = reader
         .output_buffer_size()

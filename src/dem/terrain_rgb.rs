@@ -52,6 +52,7 @@ mod tests {
         let options = ReadOptions {
             terrain_rgb: true,
             max_samples,
+            ..ReadOptions::default()
         };
         read(Cursor::new(bytes), Path::new("t.png"), &options)
     }

@@ -2,8 +2,12 @@
 //!
 //! [`encode_mesh`] turns a [`GridMesh`] and the heights of its grid into the bytes of a
 //! file; [`write_mesh`] writes them atomically. A [`Placement`] says where each grid
-//! sample goes: pixel units (`x` = column, `y` = row) or the raster's geotransform (the
-//! pixel centre), with heights multiplied by `z_scale`.
+//! sample goes: pixel units (`x` = column, `y` = row), the raster's geotransform (the
+//! pixel centre, in the CRS's units) or, for geographic DEMs, metres east, north and up
+//! of the DEM's centre ([`Placement::metric`], [`super::frame`]); heights are multiplied
+//! by `z_scale`. Every file records its frame: the glb in its node's `extras.wavemesh`
+//! (frame name, CRS, `z_scale`, the local frame's origin), OBJ and PLY in a header
+//! comment.
 //!
 //! Every output triangle is counter-clockwise seen from above (+z in OBJ and PLY, +Y in
 //! glTF), so its normal points up: when the placement mirrors the grid (a north-up
@@ -18,6 +22,7 @@
 //!   `f32`, where (cx, cy) is the centre of the vertices' x/y bounding box, and the mesh's
 //!   node gets the translation `[cx, 0, −cy]`. The mapping is a rotation, so faces stay
 //!   front-facing, and the `f32` positions stay precise however large the coordinates.
+//!   The glb has one matte material (metallic 0, roughness 0.9).
 //!
 //! Empty meshes: a mesh without triangles still gives valid files. OBJ and PLY hold its
 //! vertices and no faces. glTF forbids empty accessors and buffers, so its `.glb` holds a
@@ -29,6 +34,9 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
+use wavemesh_codec::Georef;
+
+use super::frame::{FrameError, HorizontalCrs, LocalFrame};
 use super::GridMesh;
 use crate::atomic::write_atomic;
 
@@ -70,25 +78,31 @@ impl MeshFormat {
 }
 
 /// How grid vertices become coordinates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum XyUnits {
-    /// Through the raster's geotransform, at pixel centres (pixel units without one).
+    /// Through the raster's geotransform, at pixel centres, in the CRS's own units (pixel
+    /// units without a geotransform).
     #[default]
     Georeferenced,
     /// Column and row numbers.
     Pixel,
+    /// Metres east, north and up in a tangent frame: the geotransform gives longitude and
+    /// latitude in degrees (geographic DEMs).
+    Local(LocalFrame),
 }
 
 /// Where grid samples go in the output file.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Placement {
-    /// Geotransform used when `xy` is [`XyUnits::Georeferenced`] (`None` → pixel units are
-    /// used, and [`Placement::xy_fallback`] reports it).
+    /// Geotransform used unless `xy` is [`XyUnits::Pixel`] (`None` → pixel units are used,
+    /// and [`Placement::frame_name`] says `pixel`).
     pub geotransform: Option<[f64; 6]>,
-    /// Pixel or georeferenced x/y.
+    /// Pixel, georeferenced or local metric x/y.
     pub xy: XyUnits,
     /// Multiplies heights (default 1).
     pub z_scale: f64,
+    /// The DEM's horizontal CRS, recorded in the file.
+    pub crs: HorizontalCrs,
 }
 
 impl Default for Placement {
@@ -98,6 +112,7 @@ impl Default for Placement {
             geotransform: None,
             xy: XyUnits::Georeferenced,
             z_scale: 1.0,
+            crs: HorizontalCrs::Unknown,
         }
     }
 }
@@ -106,9 +121,9 @@ impl Placement {
     /// Pixel units with heights multiplied by `z_scale`.
     pub fn pixel(z_scale: f64) -> Placement {
         Placement {
-            geotransform: None,
             xy: XyUnits::Pixel,
             z_scale,
+            ..Placement::default()
         }
     }
 
@@ -116,22 +131,59 @@ impl Placement {
     pub fn georeferenced(geotransform: [f64; 6], z_scale: f64) -> Placement {
         Placement {
             geotransform: Some(geotransform),
-            xy: XyUnits::Georeferenced,
             z_scale,
+            ..Placement::default()
         }
     }
 
-    /// Whether georeferenced x/y were asked for without a geotransform, so pixel units are
-    /// used instead.
-    pub fn xy_fallback(&self) -> bool {
-        self.xy == XyUnits::Georeferenced && self.geotransform.is_none()
+    /// The CRS's own x/y (degrees for a geographic DEM), with the CRS recorded; pixel
+    /// units without georeferencing.
+    pub fn crs_units(georef: Option<&Georef>, z_scale: f64) -> Placement {
+        match georef {
+            Some(g) => Placement {
+                crs: HorizontalCrs::of(g).unwrap_or_default(),
+                ..Placement::georeferenced(g.geotransform, z_scale)
+            },
+            None => Placement {
+                z_scale,
+                ..Placement::default()
+            },
+        }
+    }
+
+    /// The default placement of a `width × height` raster with `georef`: a geographic
+    /// DEM goes to the east-north-up frame at its centre (metres), any other keeps its
+    /// CRS's own x/y ([`Placement::crs_units`]).
+    pub fn metric(
+        georef: Option<&Georef>,
+        width: usize,
+        height: usize,
+        z_scale: f64,
+    ) -> Result<Placement, FrameError> {
+        let Some(g) = georef else {
+            return Ok(Placement::crs_units(None, z_scale));
+        };
+        let crs = HorizontalCrs::of(g)?;
+        let HorizontalCrs::Geographic {
+            degrees_per_unit, ..
+        } = crs
+        else {
+            return Ok(Placement::crs_units(georef, z_scale));
+        };
+        let degrees = g.geotransform.map(|v| v * degrees_per_unit);
+        Ok(Placement {
+            geotransform: Some(degrees),
+            xy: XyUnits::Local(LocalFrame::of_grid(&degrees, width, height)?),
+            z_scale,
+            crs,
+        })
     }
 
     /// The geotransform in use: `None` for pixel units.
     fn active_geotransform(&self) -> Option<&[f64; 6]> {
         match self.xy {
-            XyUnits::Georeferenced => self.geotransform.as_ref(),
             XyUnits::Pixel => None,
+            _ => self.geotransform.as_ref(),
         }
     }
 
@@ -139,20 +191,20 @@ impl Placement {
     ///
     /// Pixel units: `(col, row, h · z_scale)`. Georeferenced: the pixel centre,
     /// `x = gt0 + (col + ½)·gt1 + (row + ½)·gt2`, `y = gt3 + (col + ½)·gt4 + (row + ½)·gt5`,
-    /// `z = h · z_scale`.
+    /// `z = h · z_scale`. Local: that (x, y) as longitude and latitude, `z` as height,
+    /// taken to east, north and up of the frame's origin.
     pub fn position(&self, col: usize, row: usize, h: f64) -> [f64; 3] {
         let z = h * self.z_scale;
-        match self.active_geotransform() {
-            None => [col as f64, row as f64, z],
-            Some(gt) => {
-                let c = col as f64 + 0.5;
-                let r = row as f64 + 0.5;
-                [
-                    gt[0] + c * gt[1] + r * gt[2],
-                    gt[3] + c * gt[4] + r * gt[5],
-                    z,
-                ]
-            }
+        let Some(gt) = self.active_geotransform() else {
+            return [col as f64, row as f64, z];
+        };
+        let c = col as f64 + 0.5;
+        let r = row as f64 + 0.5;
+        let x = gt[0] + c * gt[1] + r * gt[2];
+        let y = gt[3] + c * gt[4] + r * gt[5];
+        match self.xy {
+            XyUnits::Local(frame) => frame.enu(x, y, z),
+            _ => [x, y, z],
         }
     }
 
@@ -160,7 +212,8 @@ impl Placement {
     /// the geotransform's 2×2 part is negative, as for every north-up raster, whose row
     /// step `gt5` is negative). The exporter then swaps two corners of every triangle so
     /// that every output triangle is counter-clockwise seen from +z (its normal points up)
-    /// in the output frame.
+    /// in the output frame. The local frame keeps the orientation of longitude and
+    /// latitude (east and north are positive multiples of them near the origin).
     ///
     /// The sign of `z_scale` plays no part: scaling z does not move the x/y projection of a
     /// triangle, so it cannot change which way the triangle turns seen from above.
@@ -168,6 +221,52 @@ impl Placement {
         match self.active_geotransform() {
             None => false,
             Some(gt) => gt[1] * gt[5] - gt[2] * gt[4] < 0.0,
+        }
+    }
+
+    /// The name of the output frame: `pixel`, `georeferenced` (the CRS's own x/y) or
+    /// `local_enu` (metres east, north, up).
+    pub fn frame_name(&self) -> &'static str {
+        match (self.xy, self.active_geotransform()) {
+            (_, None) => "pixel",
+            (XyUnits::Local(_), Some(_)) => "local_enu",
+            (_, Some(_)) => "georeferenced",
+        }
+    }
+
+    /// What a file records about its frame: its name, the CRS, the units, `z_scale` and,
+    /// for the local frame, its origin on WGS 84.
+    pub fn frame_record(&self) -> Value {
+        let mut record = json!({
+            "frame": self.frame_name(),
+            "crs": self.crs.label(),
+            "z_scale": self.z_scale,
+        });
+        if let (XyUnits::Local(f), Some(_)) = (self.xy, self.active_geotransform()) {
+            record["units"] = json!("metre");
+            record["origin"] = json!({
+                "longitude": f.lon,
+                "latitude": f.lat,
+                "height": f.height,
+                "ellipsoid": "WGS 84",
+            });
+        }
+        record
+    }
+
+    /// One line of ASCII describing the frame, for the OBJ and PLY headers.
+    pub fn frame_text(&self) -> String {
+        let z = format!("z = stored value * {}", self.z_scale);
+        let crs = self.crs.label();
+        match (self.xy, self.active_geotransform()) {
+            (_, None) => format!("frame pixel: x = column, y = row, {z}"),
+            (XyUnits::Local(f), Some(_)) => format!(
+                "frame local_enu: metres east (x), north (y) and up (z) of longitude {} latitude {} height {} on WGS 84; CRS {crs}; {z}",
+                f.lon, f.lat, f.height
+            ),
+            (_, Some(_)) => {
+                format!("frame georeferenced: x/y in the units of CRS {crs} (pixel centres); {z}")
+            }
         }
     }
 }
@@ -268,9 +367,9 @@ pub fn encode_mesh(
     let positions = positions(mesh, heights, placement, name)?;
     let triangles = oriented_triangles(mesh, placement, name)?;
     match format {
-        MeshFormat::Glb => encode_glb(&positions, &triangles),
-        MeshFormat::Obj => Ok(encode_obj(&positions, &triangles)),
-        MeshFormat::Ply => encode_ply(&positions, &triangles),
+        MeshFormat::Glb => encode_glb(&positions, &triangles, placement.frame_record()),
+        MeshFormat::Obj => Ok(encode_obj(&positions, &triangles, &placement.frame_text())),
+        MeshFormat::Ply => encode_ply(&positions, &triangles, &placement.frame_text()),
     }
 }
 
@@ -368,8 +467,9 @@ fn vertex_count(positions: &[f64]) -> usize {
     positions.len() / 3
 }
 
-/// Wavefront OBJ text: a header comment, `v x y z` lines, `f a b c` lines (1-based).
-fn encode_obj(positions: &[f64], triangles: &[[u32; 3]]) -> Vec<u8> {
+/// Wavefront OBJ text: header comments (counts, `frame`), `v x y z` lines, `f a b c`
+/// lines (1-based).
+fn encode_obj(positions: &[f64], triangles: &[[u32; 3]], frame: &str) -> Vec<u8> {
     let mut text = String::new();
     // Writing into a String cannot fail.
     let _ = writeln!(
@@ -378,6 +478,7 @@ fn encode_obj(positions: &[f64], triangles: &[[u32; 3]]) -> Vec<u8> {
         vertex_count(positions),
         triangles.len()
     );
+    let _ = writeln!(text, "# {frame}");
     for p in positions.chunks_exact(3) {
         // `{}` prints the shortest text that reads back to the same f64.
         let _ = writeln!(text, "v {} {} {}", p[0], p[1], p[2]);
@@ -395,7 +496,11 @@ fn encode_obj(positions: &[f64], triangles: &[[u32; 3]]) -> Vec<u8> {
 }
 
 /// Binary little-endian PLY: `double` x/y/z vertices, `uchar`-counted `uint` faces.
-fn encode_ply(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, ExportError> {
+fn encode_ply(
+    positions: &[f64],
+    triangles: &[[u32; 3]],
+    frame: &str,
+) -> Result<Vec<u8>, ExportError> {
     let n = vertex_count(positions);
     // Indices are `uint`; every triangle index is already below `n`, but say so plainly.
     if n as u64 > u64::from(u32::MAX) + 1 {
@@ -409,6 +514,7 @@ fn encode_ply(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
         "ply\n\
          format binary_little_endian 1.0\n\
          comment generated by wavemesh\n\
+         comment {frame}\n\
          element vertex {n}\n\
          property double x\n\
          property double y\n\
@@ -457,47 +563,92 @@ const GL_ELEMENT_ARRAY_BUFFER: u32 = 34963;
 /// glTF primitive mode of triangle lists.
 const GL_TRIANGLES: u32 = 4;
 
-/// Binary glTF 2.0 with one mesh of one indexed triangle primitive (POSITION, NORMAL).
-fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, ExportError> {
-    const FORMAT: &str = "glb";
-    if triangles.is_empty() {
-        let doc = json!({
-            "asset": { "version": "2.0", "generator": "wavemesh" },
-            "scene": 0,
-            "scenes": [{ "nodes": [0] }],
-            "nodes": [{ "name": "terrain" }],
-        });
-        return glb_container(&doc, &[]);
-    }
-    let n = vertex_count(positions);
-    // An index may not be the largest value of its type (primitive restart).
-    if n as u64 > u64::from(u32::MAX) {
-        return Err(ExportError::TooManyVertices {
-            vertices: n,
-            max: u64::from(u32::MAX),
-            format: FORMAT,
-        });
-    }
-    let short_indices = n <= usize::from(u16::MAX);
-    let index_size = if short_indices { 2 } else { 4 };
-    let index_count = triangles
-        .len()
-        .checked_mul(3)
-        .ok_or(ExportError::TooLarge { format: FORMAT })?;
-    // The container's lengths are u32: check the total before allocating.
-    let attribute_bytes = n
-        .checked_mul(12)
-        .ok_or(ExportError::TooLarge { format: FORMAT })?;
-    let index_bytes = index_count
-        .checked_mul(index_size)
-        .ok_or(ExportError::TooLarge { format: FORMAT })?;
-    let bin_len = attribute_bytes
-        .checked_mul(2)
-        .and_then(|a| a.checked_add(index_bytes))
-        .filter(|&b| b <= u32::MAX as usize - (1 << 20))
-        .ok_or(ExportError::TooLarge { format: FORMAT })?;
+/// The glb's matte material: light grey, not metallic, rough (glTF's default material is
+/// fully metallic, which renders every slope facing away from the light black).
+fn matte_material() -> Value {
+    json!({
+        "name": "terrain",
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [0.8, 0.8, 0.8, 1.0],
+            "metallicFactor": 0.0,
+            "roughnessFactor": 0.9,
+        },
+    })
+}
 
-    // Centre of the x/y bounding box.
+/// The `terrain` node's `extras`: the frame record with the glTF axes spelled out.
+fn node_extras(mut frame: Value) -> Value {
+    frame["gltf_axes"] = json!("+X = x (east), +Y = z (up), -Z = y (north)");
+    json!({ "wavemesh": frame })
+}
+
+/// Sizes and bounds of a glb's binary buffer.
+struct GlbLayout {
+    /// Vertex count.
+    vertices: usize,
+    /// Index count (3 per triangle).
+    indices: usize,
+    /// Whether indices are `u16` (else `u32`).
+    short_indices: bool,
+    /// Bytes of the positions, and of the normals.
+    attribute_bytes: usize,
+    /// Bytes of the indices.
+    index_bytes: usize,
+    /// Bytes of the whole buffer.
+    bin_len: usize,
+}
+
+impl GlbLayout {
+    /// The layout for `vertices` vertices and `triangles` triangles, checked against the
+    /// container's `u32` lengths.
+    fn new(vertices: usize, triangles: usize) -> Result<GlbLayout, ExportError> {
+        const FORMAT: &str = "glb";
+        let too_large = || ExportError::TooLarge { format: FORMAT };
+        // An index may not be the largest value of its type (primitive restart).
+        if vertices as u64 > u64::from(u32::MAX) {
+            return Err(ExportError::TooManyVertices {
+                vertices,
+                max: u64::from(u32::MAX),
+                format: FORMAT,
+            });
+        }
+        let short_indices = vertices <= usize::from(u16::MAX);
+        let index_size = if short_indices { 2 } else { 4 };
+        let indices = triangles.checked_mul(3).ok_or_else(too_large)?;
+        let attribute_bytes = vertices.checked_mul(12).ok_or_else(too_large)?;
+        let index_bytes = indices.checked_mul(index_size).ok_or_else(too_large)?;
+        let bin_len = attribute_bytes
+            .checked_mul(2)
+            .and_then(|a| a.checked_add(index_bytes))
+            .filter(|&b| b <= u32::MAX as usize - (1 << 20))
+            .ok_or_else(too_large)?;
+        Ok(GlbLayout {
+            vertices,
+            indices,
+            short_indices,
+            attribute_bytes,
+            index_bytes,
+            bin_len,
+        })
+    }
+}
+
+/// Terrain-frame positions moved to glTF's Y-up frame around the centre of their x/y
+/// bounding box: the centre, the moved positions and their `f32` bounds.
+struct GltfPositions {
+    /// Centre of the x/y bounding box (the node's translation).
+    centre: [f64; 2],
+    /// `(x − cx, z, −(y − cy))` per vertex, flattened.
+    local: Vec<f64>,
+    /// Smallest `f32` coordinate on each glTF axis.
+    min: [f32; 3],
+    /// Largest `f32` coordinate on each glTF axis.
+    max: [f32; 3],
+}
+
+/// Moves `positions` to glTF's frame, checking that everything fits an `f32`.
+fn gltf_positions(positions: &[f64]) -> Result<GltfPositions, ExportError> {
+    const FORMAT: &str = "glb";
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in positions.chunks_exact(3) {
         for k in 0..2 {
@@ -514,8 +665,6 @@ fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
             format: FORMAT,
         });
     }
-
-    // glTF-frame positions (f64 for the normals, f32 in the file) and their bounds.
     let mut local = Vec::new();
     local
         .try_reserve_exact(positions.len())
@@ -538,13 +687,38 @@ fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
         }
         local.extend_from_slice(&q);
     }
+    Ok(GltfPositions {
+        centre,
+        local,
+        min,
+        max,
+    })
+}
 
-    let normals = vertex_normals(&local, triangles);
+/// Binary glTF 2.0 with one mesh of one indexed triangle primitive (POSITION, NORMAL)
+/// and a matte material; `frame` goes into the node's `extras`.
+fn encode_glb(
+    positions: &[f64],
+    triangles: &[[u32; 3]],
+    frame: Value,
+) -> Result<Vec<u8>, ExportError> {
+    if triangles.is_empty() {
+        let doc = json!({
+            "asset": { "version": "2.0", "generator": "wavemesh" },
+            "scene": 0,
+            "scenes": [{ "nodes": [0] }],
+            "nodes": [{ "name": "terrain", "extras": node_extras(frame) }],
+        });
+        return glb_container(&doc, &[]);
+    }
+    let layout = GlbLayout::new(vertex_count(positions), triangles.len())?;
+    let gltf = gltf_positions(positions)?;
+    let normals = vertex_normals(&gltf.local, triangles);
 
     let mut bin = Vec::new();
-    bin.try_reserve_exact(bin_len + 3)
-        .map_err(|_| ExportError::TooLarge { format: FORMAT })?;
-    for &c in &local {
+    bin.try_reserve_exact(layout.bin_len + 3)
+        .map_err(|_| ExportError::TooLarge { format: "glb" })?;
+    for &c in &gltf.local {
         bin.extend_from_slice(&(c as f32).to_le_bytes());
     }
     for &c in &normals {
@@ -552,7 +726,7 @@ fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
     }
     for t in triangles {
         for &i in t {
-            if short_indices {
+            if layout.short_indices {
                 // `i < n <= u16::MAX`, so the narrowing is exact.
                 bin.extend_from_slice(&(i as u16).to_le_bytes());
             } else {
@@ -560,44 +734,56 @@ fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
             }
         }
     }
-    debug_assert_eq!(bin.len(), bin_len);
+    debug_assert_eq!(bin.len(), layout.bin_len);
+    glb_container(&glb_document(&layout, &gltf, frame), &bin)
+}
 
-    let translation: Vec<Value> = [centre[0], 0.0, -centre[1]]
+/// The glTF JSON of a glb laid out as `layout`.
+fn glb_document(layout: &GlbLayout, gltf: &GltfPositions, frame: Value) -> Value {
+    let translation: Vec<Value> = [gltf.centre[0], 0.0, -gltf.centre[1]]
         .iter()
         .map(|&v| json!(v))
         .collect();
-    let doc = json!({
+    let attribute_bytes = layout.attribute_bytes;
+    json!({
         "asset": { "version": "2.0", "generator": "wavemesh" },
         "scene": 0,
         "scenes": [{ "nodes": [0] }],
-        "nodes": [{ "name": "terrain", "mesh": 0, "translation": translation }],
+        "nodes": [{
+            "name": "terrain",
+            "mesh": 0,
+            "translation": translation,
+            "extras": node_extras(frame),
+        }],
         "meshes": [{
             "name": "terrain",
             "primitives": [{
                 "attributes": { "POSITION": 0, "NORMAL": 1 },
                 "indices": 2,
+                "material": 0,
                 "mode": GL_TRIANGLES,
             }],
         }],
+        "materials": [matte_material()],
         "accessors": [
             {
                 "bufferView": 0,
                 "componentType": GL_FLOAT,
-                "count": n,
+                "count": layout.vertices,
                 "type": "VEC3",
-                "min": min,
-                "max": max,
+                "min": gltf.min,
+                "max": gltf.max,
             },
             {
                 "bufferView": 1,
                 "componentType": GL_FLOAT,
-                "count": n,
+                "count": layout.vertices,
                 "type": "VEC3",
             },
             {
                 "bufferView": 2,
-                "componentType": if short_indices { GL_UNSIGNED_SHORT } else { GL_UNSIGNED_INT },
-                "count": index_count,
+                "componentType": if layout.short_indices { GL_UNSIGNED_SHORT } else { GL_UNSIGNED_INT },
+                "count": layout.indices,
                 "type": "SCALAR",
             },
         ],
@@ -617,13 +803,12 @@ fn encode_glb(positions: &[f64], triangles: &[[u32; 3]]) -> Result<Vec<u8>, Expo
             {
                 "buffer": 0,
                 "byteOffset": 2 * attribute_bytes,
-                "byteLength": index_bytes,
+                "byteLength": layout.index_bytes,
                 "target": GL_ELEMENT_ARRAY_BUFFER,
             },
         ],
-        "buffers": [{ "byteLength": bin_len }],
-    });
-    glb_container(&doc, &bin)
+        "buffers": [{ "byteLength": layout.bin_len }],
+    })
 }
 
 /// The midpoint of `[a, b]`, without overflowing.
@@ -726,7 +911,7 @@ mod tests {
         let p = Placement::pixel(2.0);
         assert_eq!(p.position(0, 0, 0.0), [0.0, 0.0, 0.0]);
         assert_eq!(p.position(3, 7, 10.5), [3.0, 7.0, 21.0]);
-        assert!(!p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
     }
 
     #[test]
@@ -748,17 +933,90 @@ mod tests {
         let p = Placement {
             geotransform: Some(NORTH_UP),
             xy: XyUnits::Pixel,
-            z_scale: 1.0,
+            ..Placement::default()
         };
         assert_eq!(p.position(4, 5, 1.0), [4.0, 5.0, 1.0]);
         assert!(!p.flips_winding());
-        assert!(!p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
+    }
+
+    /// A GeoKey directory with `GTModelTypeGeoKey` `model` and the CRS code `code`
+    /// (geographic or projected as `model` says) and angular unit `unit`.
+    fn georef(gt: [f64; 6], model: u16, code: u16, unit: u16) -> Georef {
+        let crs_key = if model == 2 { 2048 } else { 3072 };
+        Georef {
+            geotransform: gt,
+            geo_key_directory: vec![
+                1, 1, 0, 3, 1024, 0, 1, model, crs_key, 0, 1, code, 2054, 0, 1, unit,
+            ],
+            ..Georef::default()
+        }
+    }
+
+    /// Three arc-seconds, in degrees.
+    const ARC3: f64 = 1.0 / 1200.0;
+
+    #[test]
+    fn geographic_dems_go_to_local_metres() {
+        let gt = [-84.5, ARC3, 0.0, 36.8, 0.0, -ARC3];
+        let g = georef(gt, 2, 4326, 9102);
+        let p = Placement::metric(Some(&g), 401, 301, 1.0).unwrap();
+        let XyUnits::Local(frame) = p.xy else {
+            panic!("{p:?}")
+        };
+        assert_eq!(p.frame_name(), "local_enu");
+        assert!((frame.lon - (-84.5 + 200.5 * ARC3)).abs() < 1e-12);
+        // The centre sample is at the origin, its height straight up.
+        let centre = p.position(200, 150, 500.0);
+        assert!(centre
+            .iter()
+            .zip([0.0, 0.0, 500.0])
+            .all(|(a, b)| (a - b).abs() < 1e-6));
+        // One sample east is ~74.5 m at 36.7° N, one south ~92.5 m.
+        let east = p.position(201, 150, 500.0);
+        let south = p.position(200, 151, 500.0);
+        assert!((74.0..75.0).contains(&(east[0] - centre[0])), "{east:?}");
+        assert!(
+            (-93.0..-92.0).contains(&(south[1] - centre[1])),
+            "{south:?}"
+        );
+        assert!(p.flips_winding());
+        let record = p.frame_record();
+        assert_eq!(record["crs"], "EPSG:4326");
+        assert_eq!(record["origin"]["ellipsoid"], "WGS 84");
+        assert!(p.frame_text().contains("local_enu"));
+        assert!(p.frame_text().is_ascii(), "PLY headers are ASCII");
+        // The same in radians.
+        let radians = georef(gt.map(f64::to_radians), 2, 4326, 9101);
+        let q = Placement::metric(Some(&radians), 401, 301, 1.0).unwrap();
+        let east_rad = q.position(201, 150, 500.0);
+        assert!(east_rad.iter().zip(east).all(|(a, b)| (a - b).abs() < 1e-6));
+    }
+
+    #[test]
+    fn projected_and_unreferenced_dems_keep_their_coordinates() {
+        let g = georef(NORTH_UP, 1, 32632, 9102);
+        let p = Placement::metric(Some(&g), 10, 10, 2.0).unwrap();
+        let crs = Placement::crs_units(Some(&g), 2.0);
+        assert_eq!(p, crs);
+        assert_eq!(p.position(0, 0, 5.0), [500_015.0, 3_999_985.0, 10.0]);
+        assert_eq!(p.frame_name(), "georeferenced");
+        assert_eq!(p.frame_record()["crs"], "EPSG:32632");
+        let none = Placement::metric(None, 10, 10, 1.0).unwrap();
+        assert_eq!(none.frame_name(), "pixel");
+        // Degrees on request, and a DEM beyond the poles refused.
+        let geographic = georef([10.0, ARC3, 0.0, 58.0, 0.0, -ARC3], 2, 4326, 9102);
+        let degrees = Placement::crs_units(Some(&geographic), 1.0);
+        assert_eq!(degrees.position(0, 0, 1.0)[0], 10.0 + 0.5 * ARC3);
+        assert_eq!(degrees.frame_record()["crs"], "EPSG:4326");
+        let polar = georef([10.0, 1.0, 0.0, 91.0, 0.0, -1.0], 2, 4326, 9102);
+        assert!(Placement::metric(Some(&polar), 4, 4, 1.0).is_err());
     }
 
     #[test]
     fn georeferenced_without_geotransform_falls_back_to_pixels() {
         let p = Placement::default();
-        assert!(p.xy_fallback());
+        assert_eq!(p.frame_name(), "pixel");
         assert_eq!(p.position(4, 5, 1.0), [4.0, 5.0, 1.0]);
         assert!(!p.flips_winding());
     }
