@@ -8,6 +8,7 @@ pub mod fuzzing;
 pub mod lod;
 pub mod memory;
 pub mod mesh;
+pub mod meshers;
 pub mod metrics;
 pub mod report;
 pub mod synth;

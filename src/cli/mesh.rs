@@ -15,7 +15,9 @@ use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::coding::SCHEMA_VERSION;
+use super::meshers::{mesh_direct, MethodArg};
 use super::{timed, with_codec_progress, with_progress, CliError, InputArgs, WaveletArg, Workload};
+use wavemesh::meshers;
 
 /// Which coefficients split a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -151,6 +153,22 @@ impl MeshOptions {
             MeshTarget::Plane(threshold_plane.unwrap_or(decoded_plane)),
             None,
         ))
+    }
+
+    /// The budget of a mesh built straight from the heights (`--method` other than
+    /// zerotree): `--triangles`, else `--mesh-error`, else 1 % of the grid's triangles.
+    fn direct_budget(&self, samples: usize) -> Result<meshers::Budget, CliError> {
+        self.target(0)?;
+        if self.threshold.is_some() {
+            return Err(CliError::Usage(
+                "--threshold applies to --method zerotree only".into(),
+            ));
+        }
+        Ok(match (self.triangles, self.mesh_error) {
+            (Some(n), _) => meshers::Budget::Triangles(n),
+            (None, Some(e)) => meshers::Budget::MaxError(e),
+            (None, None) => meshers::Budget::Triangles((samples / 50).max(2)),
+        })
     }
 
     /// Where the samples of `raster` go in the mesh file.
@@ -393,6 +411,10 @@ pub struct MeshArgs {
     bpp: Option<f64>,
     #[command(flatten)]
     mesh: MeshOptions,
+    /// Which mesher: the zerotree (after an encode and decode) or one straight from the
+    /// heights.
+    #[arg(long, value_enum, default_value = "zerotree")]
+    method: MethodArg,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -428,6 +450,15 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         args.input_args.max_memory(),
     )?;
     args.mesh.check_raster(&raster, &args.input)?;
+    if args.method != MethodArg::Zerotree {
+        let budget = args.mesh.direct_budget(raster.len())?;
+        let placement = args
+            .mesh
+            .placement(&raster)
+            .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+        let paths = (args.input.as_path(), args.output.as_path());
+        return mesh_direct(args.method, &raster, budget, &placement, paths, args.json);
+    }
     let budget = match args.bpp {
         Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
             Some((bpp * raster.len() as f64 / 8.0).floor() as u64)

@@ -3,6 +3,7 @@
 mod coding;
 mod demo;
 mod mesh;
+mod meshers;
 mod metadata_report;
 mod report;
 mod synth;
@@ -38,6 +39,8 @@ enum Command {
     Compare(coding::CompareArgs),
     /// Encode, decode and mesh a DEM in one go (.glb, .obj or .ply).
     Mesh(mesh::MeshArgs),
+    /// Every mesher (ours, Delatin, Martini) at the same triangle budgets.
+    CompareMeshers(meshers::CompareArgs),
     /// The seed paper's Tables 1 and 2 (mesh and memory per threshold or bit rate).
     Table(mesh::TableArgs),
     /// Run the bundled sample end to end and print the results table.
@@ -281,6 +284,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Compare(args) => coding::compare(&args),
         Command::Mesh(args) => mesh::mesh(&args),
         Command::Table(args) => mesh::table(&args),
+        Command::CompareMeshers(args) => meshers::compare(&args),
         Command::Demo(args) => demo::run(&args),
         Command::Report(args) => report::run(&args),
         Command::Synth(args) => synth::run(&args),

@@ -10,6 +10,7 @@
 pub mod cells;
 pub mod export;
 pub mod frame;
+pub mod greedy;
 pub mod pyramid;
 pub mod rasterise;
 pub mod triangulate;

@@ -1,0 +1,574 @@
+//! Greedy insertion (Garland–Heckbert, as Delatin does): start from the rectangle as two
+//! triangles, insert the worst sample of the worst triangle, re-triangulate around it,
+//! repeat until a triangle budget or a height tolerance is met.
+//!
+//! Stages, one module each: [`triangulation`] (half-edges: split a triangle or an edge,
+//! flip an edge) and [`scan`] (a triangle's samples: its worst one, its squared error).
+//! This module drives them. After each insertion the edges around the new vertex are
+//! legalised by the Delaunay empty-circle test (what Delatin does); after the last one,
+//! [`GreedyMesher::optimise_flips`] may flip edges that lower the squared error (a
+//! data-dependent triangulation of the same vertices). Data-dependent flips during
+//! insertion were tried and lose: on fuji 512² at 5111 triangles, RMSE 26.1 against
+//! 15.4 for Delaunay, the greedy choice of vertices then chases slivers.
+//! Nodata: a triangle that covers nodata and valid samples besides its corners splits
+//! first (infinite error); triangles still covering nodata at the end are left out.
+
+pub mod scan;
+pub mod triangulation;
+
+use std::collections::BinaryHeap;
+
+use bitvec::prelude::*;
+
+use super::GridMesh;
+use scan::{assess, errors, Assessment, Grid};
+use triangulation::{in_circle, orient, Triangulation, NONE};
+
+/// When insertion stops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GreedyTarget {
+    /// The most triangles at most this many.
+    Triangles(usize),
+    /// Every valid sample within this many data units of the mesh.
+    MaxError(f64),
+}
+
+/// Why a greedy mesh cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GreedyError {
+    /// Fewer than two samples along a side.
+    #[error("a {width}x{height} grid is too small to mesh (2x2 at least)")]
+    TooSmall {
+        /// Samples per row.
+        width: usize,
+        /// Rows.
+        height: usize,
+    },
+    /// A valid sample holds NaN or an infinity.
+    #[error("sample {0} is valid but not finite")]
+    NotFinite(usize),
+    /// The heights and validity do not match the grid's size.
+    #[error("{0} heights or validity flags for a grid of {1} samples")]
+    SizeMismatch(usize, usize),
+}
+
+/// A triangle waiting in the queue: its error, and the version of its slot it was
+/// assessed at (an entry is stale once the slot is rewritten).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Entry {
+    error_bits: u64,
+    triangle: u32,
+    version: u32,
+}
+
+/// Greedy insertion over one grid.
+#[derive(Debug)]
+pub struct GreedyMesher<'a> {
+    grid: Grid<'a>,
+    tin: Triangulation,
+    assessments: Vec<Assessment>,
+    versions: Vec<u32>,
+    queue: BinaryHeap<Entry>,
+    /// Triangles rewritten by the current insertion (to assess again).
+    touched: Vec<u32>,
+    /// Triangles with at most this error are never split, so never queued.
+    settled: f64,
+    /// Whether a triangle over a tolerance first tries a flip that brings it within.
+    resolving_flips: bool,
+}
+
+impl<'a> GreedyMesher<'a> {
+    /// A mesher of `grid` (the rectangle as two triangles).
+    pub fn new(grid: Grid<'a>) -> Result<GreedyMesher<'a>, GreedyError> {
+        let n = grid.width * grid.height;
+        if grid.width < 2 || grid.height < 2 {
+            return Err(GreedyError::TooSmall {
+                width: grid.width,
+                height: grid.height,
+            });
+        }
+        if grid.heights.len() != n || grid.valid.len() * 64 < n {
+            return Err(GreedyError::SizeMismatch(grid.heights.len(), n));
+        }
+        if let Some(s) = (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].is_finite()) {
+            return Err(GreedyError::NotFinite(s));
+        }
+        let mut mesher = GreedyMesher {
+            grid,
+            tin: Triangulation::rectangle(grid.width, grid.height),
+            assessments: Vec::new(),
+            versions: Vec::new(),
+            queue: BinaryHeap::new(),
+            touched: vec![0, 1],
+            settled: 0.0,
+            resolving_flips: false,
+        };
+        mesher.assess_touched();
+        Ok(mesher)
+    }
+
+    /// Before inserting into a triangle over a tolerance, try flipping one of its sides
+    /// so that both triangles the flip makes are within it (no vertex needed there).
+    pub fn with_resolving_flips(mut self) -> GreedyMesher<'a> {
+        self.resolving_flips = true;
+        self
+    }
+
+    /// Triangles of the triangulation so far (those over nodata included).
+    pub fn triangle_count(&self) -> usize {
+        self.tin.triangle_count()
+    }
+
+    /// Inserts vertices until `target` is met (or nothing is left to insert).
+    pub fn run(&mut self, target: GreedyTarget) {
+        if let GreedyTarget::MaxError(e) = target {
+            // Queued triangles within the tolerance stay; new ones are not queued.
+            self.settled = self.settled.max(e);
+        }
+        while let Some(worst) = self.worst() {
+            let error = self.assessments[worst as usize].error;
+            let done = match target {
+                GreedyTarget::MaxError(e) => error <= e,
+                GreedyTarget::Triangles(n) => {
+                    error == 0.0 || self.triangle_count() + self.growth(worst) > n
+                }
+            };
+            if done {
+                return;
+            }
+            if let (GreedyTarget::MaxError(e), true) = (target, self.resolving_flips) {
+                if self.resolving_flip(worst, e) {
+                    continue;
+                }
+            }
+            self.insert(worst);
+        }
+    }
+
+    /// Local optimisation after insertion: passes over every interior edge, flipping
+    /// it when the other diagonal of its (convex) quadrilateral has a smaller squared
+    /// error and a largest error no worse than `limit` (or than the current diagonal's
+    /// when `limit` is `None`); stops after a pass without flips or `passes` passes.
+    /// Returns the mesh and the flips made. The flipped triangles are not assessed
+    /// again (they cover no nodata, as the quadrilaterals they come from), so this ends
+    /// the insertion.
+    pub fn optimise_flips(mut self, limit: Option<f64>, passes: usize) -> (GridMesh, usize) {
+        let mut cache: Vec<(f64, f64)> = vec![(f64::NAN, 0.0); self.triangle_count()];
+        let mut flips = 0;
+        for _ in 0..passes {
+            let before = flips;
+            for e in 0..self.tin.corners.len() as u32 {
+                if self.try_improving_flip(e, limit, &mut cache) {
+                    flips += 1;
+                }
+            }
+            if flips == before {
+                break;
+            }
+        }
+        (self.mesh(), flips)
+    }
+
+    /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would (`cache` holds
+    /// each triangle's errors, NaN when not yet known).
+    fn try_improving_flip(&mut self, e: u32, limit: Option<f64>, cache: &mut [(f64, f64)]) -> bool {
+        let f = self.tin.twins[e as usize];
+        if f == NONE || f < e {
+            return false;
+        }
+        let (t1, t2) = (e / 3, f / 3);
+        let (a1, a2) = (
+            &self.assessments[t1 as usize],
+            &self.assessments[t2 as usize],
+        );
+        if a1.touches_void || a2.touches_void {
+            return false;
+        }
+        let [a, b, c, d] = self
+            .tin
+            .quad(e)
+            .expect("interior")
+            .map(|v| self.tin.points[v as usize]);
+        if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
+            return false;
+        }
+        for (t, p) in [(t1, [a, b, c]), (t2, [b, a, d])] {
+            if cache[t as usize].0.is_nan() {
+                cache[t as usize] = errors(&self.grid, p);
+            }
+        }
+        let now = (
+            cache[t1 as usize].0.max(cache[t2 as usize].0),
+            cache[t1 as usize].1 + cache[t2 as usize].1,
+        );
+        let (new1, new2) = (errors(&self.grid, [c, a, d]), errors(&self.grid, [d, b, c]));
+        let allowed = limit.unwrap_or(now.0);
+        if new1.0.max(new2.0) > allowed || new1.1 + new2.1 >= now.1 * (1.0 - 1e-12) {
+            return false;
+        }
+        self.tin.flip(e);
+        cache[t1 as usize] = new1;
+        cache[t2 as usize] = new2;
+        true
+    }
+
+    /// The mesh: every triangle that covers no nodata.
+    pub fn mesh(&self) -> GridMesh {
+        let mut index = vec![u32::MAX; self.tin.points.len()];
+        let mut vertices = Vec::new();
+        let mut triangles = Vec::new();
+        for t in 0..self.triangle_count() as u32 {
+            if self.assessments[t as usize].touches_void {
+                continue;
+            }
+            let corners = self.tin.triangle(t).map(|v| {
+                if index[v as usize] == u32::MAX {
+                    index[v as usize] = vertices.len() as u32;
+                    vertices.push(self.grid.sample(self.tin.points[v as usize]) as u32);
+                }
+                index[v as usize]
+            });
+            triangles.push(corners);
+        }
+        GridMesh {
+            width: self.grid.width,
+            height: self.grid.height,
+            vertices,
+            triangles,
+        }
+    }
+
+    /// The triangle with the largest error (stale queue entries dropped on the way).
+    fn worst(&mut self) -> Option<u32> {
+        while let Some(top) = self.queue.peek() {
+            if self.versions[top.triangle as usize] == top.version {
+                return Some(top.triangle);
+            }
+            self.queue.pop();
+        }
+        None
+    }
+
+    /// Where triangle `t`'s candidate falls: `Some(half-edge)` when on one of its sides.
+    fn side_holding(&self, t: u32) -> Option<u32> {
+        let s = self.assessments[t as usize].candidate as usize;
+        let p = ((s % self.grid.width) as i64, (s / self.grid.width) as i64);
+        let [a, b, c] = self.tin.triangle_points(t);
+        let sides = [(a, b), (b, c), (c, a)];
+        (0..3)
+            .find(|&k| orient(sides[k].0, sides[k].1, p) == 0)
+            .map(|k| 3 * t + k as u32)
+    }
+
+    /// Flips a side of triangle `t` (over `tolerance`) when both triangles the flip
+    /// makes are within `tolerance`: the tolerance met there without a new vertex.
+    fn resolving_flip(&mut self, t: u32, tolerance: f64) -> bool {
+        if self.assessments[t as usize].touches_void {
+            return false;
+        }
+        for e in 3 * t..3 * t + 3 {
+            let Some(quad) = self.tin.quad(e) else {
+                continue;
+            };
+            let [a, b, c, d] = quad.map(|v| self.tin.points[v as usize]);
+            if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
+                continue;
+            }
+            let first = assess(&self.grid, [c, a, d]);
+            if first.error > tolerance || first.touches_void {
+                continue;
+            }
+            let second = assess(&self.grid, [d, b, c]);
+            if second.error > tolerance || second.touches_void {
+                continue;
+            }
+            let f = self.tin.twins[e as usize];
+            self.tin.flip(e);
+            self.touched.extend_from_slice(&[e / 3, f / 3]);
+            self.assess_touched();
+            return true;
+        }
+        false
+    }
+
+    /// Triangles inserting triangle `t`'s candidate adds.
+    fn growth(&self, t: u32) -> usize {
+        match self.side_holding(t) {
+            Some(e) if self.tin.twins[e as usize] == NONE => 1,
+            _ => 2,
+        }
+    }
+
+    /// Inserts triangle `t`'s candidate, legalises around it and queues what changed.
+    fn insert(&mut self, t: u32) {
+        let s = self.assessments[t as usize].candidate as usize;
+        let side = self.side_holding(t);
+        let p = self
+            .tin
+            .add_point((s % self.grid.width) as i64, (s / self.grid.width) as i64);
+        let (made, opposite) = match side {
+            Some(e) => self.tin.split_edge(e, p),
+            None => {
+                let (made, opposite) = self.tin.split_triangle(t, p);
+                (made.to_vec(), opposite.to_vec())
+            }
+        };
+        self.touched.extend_from_slice(&made);
+        for e in opposite {
+            self.legalise(e);
+        }
+        self.assess_touched();
+    }
+
+    /// Flips the edge of `e` (opposite the new vertex) while the new vertex lies inside
+    /// the circle of the triangle across it, then the two edges that face the vertex
+    /// after the flip.
+    fn legalise(&mut self, e: u32) {
+        let mut stack = vec![e];
+        while let Some(e) = stack.pop() {
+            if !self.violates_delaunay(e) {
+                continue;
+            }
+            let f = self.tin.twins[e as usize];
+            self.touched.extend_from_slice(&[e / 3, f / 3]);
+            stack.extend_from_slice(&self.tin.flip(e));
+        }
+    }
+
+    /// Whether the far corner `d` across `e` (`a → b` in triangle `(a, b, c)`, `c` the
+    /// new vertex) lies inside the circle through `a`, `b`, `c`.
+    fn violates_delaunay(&self, e: u32) -> bool {
+        let Some(quad) = self.tin.quad(e) else {
+            return false;
+        };
+        let [a, b, c, d] = quad.map(|v| self.tin.points[v as usize]);
+        in_circle(a, b, c, d)
+    }
+
+    /// Assesses every touched triangle again and queues it.
+    fn assess_touched(&mut self) {
+        let mut touched = std::mem::take(&mut self.touched);
+        touched.sort_unstable();
+        touched.dedup();
+        let count = self.triangle_count();
+        self.assessments.resize(
+            count,
+            Assessment {
+                error: 0.0,
+                candidate: u32::MAX,
+                touches_void: false,
+            },
+        );
+        self.versions.resize(count, 0);
+        for &t in &touched {
+            let assessment = assess(&self.grid, self.tin.triangle_points(t));
+            self.assessments[t as usize] = assessment;
+            self.versions[t as usize] = self.versions[t as usize].wrapping_add(1);
+            if assessment.error > self.settled {
+                self.queue.push(Entry {
+                    error_bits: assessment.error.to_bits(),
+                    triangle: t,
+                    version: self.versions[t as usize],
+                });
+            }
+        }
+        touched.clear();
+        self.touched = touched;
+    }
+}
+
+/// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`. With
+/// `optimise` (passes), the data-dependent refinements: resolving flips during
+/// insertion towards a tolerance, error-lowering flips after it.
+pub fn greedy_mesh(
+    width: usize,
+    height: usize,
+    heights: &[f64],
+    valid: &BitSlice<u64, Lsb0>,
+    target: GreedyTarget,
+    optimise: Option<usize>,
+) -> Result<GridMesh, GreedyError> {
+    let mut aligned = valid.to_bitvec();
+    aligned.force_align();
+    let valid = aligned.as_raw_slice();
+    let grid = Grid {
+        width,
+        height,
+        heights,
+        valid,
+    };
+    let mut mesher = GreedyMesher::new(grid)?;
+    if optimise.is_some() {
+        mesher = mesher.with_resolving_flips();
+    }
+    mesher.run(target);
+    Ok(match optimise {
+        Some(passes) => {
+            let limit = match target {
+                GreedyTarget::MaxError(e) => Some(e),
+                GreedyTarget::Triangles(_) => None,
+            };
+            mesher.optimise_flips(limit, passes).0
+        }
+        None => mesher.mesh(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::rasterise::mesh_error;
+
+    /// Rolling hills with a ridge oblique to the grid.
+    fn terrain(w: usize, h: usize) -> Vec<f64> {
+        (0..w * h)
+            .map(|s| {
+                let (x, y) = ((s % w) as f64, (s / w) as f64);
+                40.0 * (-(x - 0.6 * y - 10.0).powi(2) / 30.0).exp()
+                    + 5.0 * (x / 7.0).sin() * (y / 5.0).cos()
+            })
+            .collect()
+    }
+
+    fn check_valid_mesh(mesh: &GridMesh) {
+        let area: i64 = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| {
+                    let (x, y) = mesh.vertex_position(v);
+                    (x as i64, y as i64)
+                });
+                let twice = orient(p[0], p[1], p[2]);
+                assert!(twice > 0, "a triangle is flipped");
+                twice
+            })
+            .sum();
+        assert_eq!(area, 2 * (mesh.width as i64 - 1) * (mesh.height as i64 - 1));
+    }
+
+    #[test]
+    fn a_tolerance_holds_at_every_sample() {
+        let (w, h) = (61, 47);
+        let heights = terrain(w, h);
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        for optimise in [None, Some(2)] {
+            let mesh = greedy_mesh(
+                w,
+                h,
+                &heights,
+                &valid,
+                GreedyTarget::MaxError(0.5),
+                optimise,
+            )
+            .unwrap();
+            check_valid_mesh(&mesh);
+            let error = mesh_error(&mesh, &heights, &heights, &valid);
+            assert!(error.max_error <= 0.5, "{optimise:?}: {}", error.max_error);
+            assert_eq!(error.uncovered_samples, 0);
+            assert!(mesh.triangles.len() < 2 * (w - 1) * (h - 1) / 3);
+        }
+    }
+
+    #[test]
+    fn a_budget_is_never_exceeded_and_more_triangles_miss_less() {
+        let (w, h) = (64, 64);
+        let heights = terrain(w, h);
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let mut last = f64::INFINITY;
+        for n in [50, 200, 800] {
+            let mesh =
+                greedy_mesh(w, h, &heights, &valid, GreedyTarget::Triangles(n), Some(2)).unwrap();
+            assert!(mesh.triangles.len() <= n && mesh.triangles.len() + 2 >= n);
+            check_valid_mesh(&mesh);
+            let rmse = mesh_error(&mesh, &heights, &heights, &valid).rmse;
+            assert!(rmse < last);
+            last = rmse;
+        }
+    }
+
+    #[test]
+    fn error_lowering_flips_beat_delaunay_at_the_same_vertices() {
+        let (w, h) = (64, 64);
+        let heights = terrain(w, h);
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let build = |optimise| {
+            let target = GreedyTarget::Triangles(300);
+            let mesh = greedy_mesh(w, h, &heights, &valid, target, optimise).unwrap();
+            let mut samples = mesh.vertices.clone();
+            samples.sort_unstable();
+            (samples, mesh_error(&mesh, &heights, &heights, &valid).rmse)
+        };
+        let (plain, optimised) = (build(None), build(Some(2)));
+        assert_eq!(plain.0, optimised.0);
+        assert!(
+            optimised.1 < 0.97 * plain.1,
+            "{} vs {}",
+            optimised.1,
+            plain.1
+        );
+    }
+
+    #[test]
+    fn resolving_flips_meet_a_tolerance_with_fewer_triangles() {
+        let (w, h) = (80, 80);
+        let heights = terrain(w, h);
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let valid_words = valid.as_raw_slice();
+        let grid = Grid {
+            width: w,
+            height: h,
+            heights: &heights,
+            valid: valid_words,
+        };
+        let count = |resolving: bool| {
+            let mut mesher = GreedyMesher::new(grid).unwrap();
+            if resolving {
+                mesher = mesher.with_resolving_flips();
+            }
+            mesher.run(GreedyTarget::MaxError(0.25));
+            let mesh = mesher.mesh();
+            check_valid_mesh(&mesh);
+            assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 0.25);
+            mesh.triangles.len()
+        };
+        let (with, without) = (count(true), count(false));
+        assert!(with < without, "{with} against {without}");
+    }
+
+    #[test]
+    fn nodata_is_never_meshed_and_the_rest_stays_covered() {
+        let (w, h) = (40, 30);
+        let heights = terrain(w, h);
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        for y in 10..17 {
+            for x in 5..14 {
+                valid.set(y * w + x, false);
+            }
+        }
+        let mesh =
+            greedy_mesh(w, h, &heights, &valid, GreedyTarget::MaxError(1.0), Some(2)).unwrap();
+        let (_, covered) = crate::mesh::rasterise::rasterise(&mesh, &heights);
+        for s in 0..w * h {
+            assert_eq!(covered[s], valid[s], "sample {s}");
+        }
+        assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 1.0);
+    }
+
+    #[test]
+    fn bad_grids_are_errors() {
+        let valid = bitvec![u64, Lsb0; 1; 3];
+        let too_small = greedy_mesh(3, 1, &[0.0; 3], &valid, GreedyTarget::MaxError(1.0), None);
+        assert!(matches!(too_small, Err(GreedyError::TooSmall { .. })));
+        let valid = bitvec![u64, Lsb0; 1; 4];
+        let nan = greedy_mesh(
+            2,
+            2,
+            &[0.0, f64::NAN, 0.0, 0.0],
+            &valid,
+            GreedyTarget::MaxError(1.0),
+            None,
+        );
+        assert_eq!(nan, Err(GreedyError::NotFinite(1)));
+    }
+}
