@@ -426,3 +426,31 @@ fn a_rate_below_the_smallest_prefix_decodes_the_smallest_and_says_so() {
         assert!(used > 10 && used < 2000, "{used}");
     }
 }
+
+#[test]
+fn views_of_a_raster_with_nothing_to_mesh_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let thin = dir.path().join("thin.asc");
+    let header = "ncols 1\nnrows 5\nxllcorner 0\nyllcorner 0\ncellsize 1\n";
+    std::fs::write(&thin, format!("{header}1\n2\n3\n4\n5\n")).unwrap();
+    let ezw = dir.path().join("thin.ezw");
+    assert!(wavemesh(&["encode", s(&thin), "-o", s(&ezw)])
+        .status
+        .success());
+    let glb = dir.path().join("v.glb");
+    let view = [
+        "view",
+        s(&ezw),
+        "--camera",
+        "0,0,100",
+        "--look",
+        "0,2,0",
+        "-o",
+        s(&glb),
+    ];
+    let err = one_line_failure(&wavemesh(&view), 3);
+    assert!(err.contains("nothing to mesh"), "{err}");
+    let err = one_line_failure(&wavemesh(&["flythrough", s(&ezw), "--json"]), 3);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!glb.exists());
+}

@@ -200,7 +200,7 @@ impl MeshOptions {
 
 /// Whether some 2 × 2 block of `raster` is all valid samples (the smallest cell the
 /// mesher triangulates; cells touching nodata are left out).
-fn has_valid_cell(raster: &Raster) -> bool {
+pub(super) fn has_valid_cell(raster: &Raster) -> bool {
     let w = raster.width;
     (1..raster.height).any(|row| {
         (1..w).any(|col| {

@@ -19,10 +19,11 @@ use wavemesh::view::morph::{morph, MorphScratch};
 use wavemesh::view::render::{top_down, write_png};
 use wavemesh::view::selection::{Rule, ViewTerrain};
 use wavemesh::view::ViewError;
-use wavemesh_codec::{decode, DecodeOptions, Decoded, Limits};
+use wavemesh_codec::{decode, DecodeOptions, Decoded};
 
 use super::coding::SCHEMA_VERSION;
-use super::CliError;
+use super::mesh::has_valid_cell;
+use super::{CliError, LimitArgs};
 
 /// Which rule sets the per-region thresholds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -72,9 +73,8 @@ pub struct ViewOptions {
     /// Largest side of --render images, pixels.
     #[arg(long, default_value_t = 768)]
     render_size: u32,
-    /// Refuse streams whose decode needs more memory than this (bytes).
-    #[arg(long, default_value_t = 2 << 30)]
-    max_memory: u64,
+    #[command(flatten)]
+    limit_args: LimitArgs,
 }
 
 /// `wavemesh view`.
@@ -203,14 +203,20 @@ impl Loaded {
         let start = Instant::now();
         let decode_options = DecodeOptions {
             significance_map: true,
-            limits: Limits {
-                max_memory: options.max_memory,
-                ..Limits::default()
-            },
+            limits: options.limit_args.limits(),
             ..DecodeOptions::default()
         };
         let decoded =
             decode(&data, &decode_options).map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
+        if !has_valid_cell(&decoded.raster) {
+            return Err(CliError::Input(
+                input.to_path_buf(),
+                format!(
+                    "nothing to mesh: the {} × {} raster has no 2 × 2 block of valid samples",
+                    decoded.raster.width, decoded.raster.height
+                ),
+            ));
+        }
         let decode_seconds = start.elapsed().as_secs_f64();
         let surface = Surface::of(&decoded.raster);
         let placement = options.placement(&decoded)?;
