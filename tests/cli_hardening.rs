@@ -454,3 +454,32 @@ fn views_of_a_raster_with_nothing_to_mesh_say_so() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(!glb.exists());
 }
+
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_the_run_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let ezw = dir.path().join("dem.ezw");
+    assert!(
+        wavemesh(&["encode", s(&sample("jacksboro_fault.tif")), "-o", s(&ezw)])
+            .status
+            .success()
+    );
+    // The reader is gone before the first line is printed.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_wavemesh"))
+        .args(["info", s(&ezw)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    let err = stderr(&output);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        output.status.success() || output.status.signal() == Some(13),
+        "{:?}: {err}",
+        output.status
+    );
+}
