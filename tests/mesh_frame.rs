@@ -241,9 +241,9 @@ fn shared_projected_dem_stays_in_utm_needs_shared_dems() {
     let input = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/dem/srtm3_utm32_f32/srtm3_utm32_f32.tif");
     if !input.exists() {
-        eprintln!(
-            "SKIPPED shared_projected_dem_stays_in_utm: {} not found",
-            input.display()
+        support::skipped(
+            "mesh_frame::shared_projected_dem_stays_in_utm",
+            &format!("{} not found", input.display()),
         );
         return;
     }
@@ -452,10 +452,12 @@ fn on_path(program: &str) -> bool {
 fn rendered_glb_shows_terrain_needs_chromium_and_three() {
     let three = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/render/node_modules/three");
     if !on_path("chromium") || !three.join("build/three.module.js").exists() {
-        eprintln!(
-            "SKIPPED rendered_glb_shows_terrain: needs `chromium` on the PATH (apt-get install chromium) \
-             and {} (npm install in tests/render)",
-            three.display()
+        support::skipped(
+            "mesh_frame::rendered_glb_shows_terrain",
+            &format!(
+                "needs `chromium` on the PATH (apt-get install chromium) and {} (npm install in tests/render)",
+                three.display()
+            ),
         );
         return;
     }

@@ -2,6 +2,8 @@
 //! the from-scratch selection, geomorphing that keeps vertex jumps small, and the rules'
 //! basic behaviour; on synthetic terrains with and without voids and on the shared DEMs.
 
+mod support;
+
 use bitvec::prelude::*;
 use glam::DVec3;
 use proptest::prelude::*;
@@ -325,9 +327,9 @@ fn shared_dem_alps_srtm_voids_flight_needs_shared_dems() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/dem/alps_srtm_voids/alps_srtm_voids.tif");
     if !path.exists() {
-        eprintln!(
-            "SKIPPED shared_dem_alps_srtm_voids_flight: {} is absent",
-            path.display()
+        support::skipped(
+            "view::shared_dem_alps_srtm_voids_flight",
+            &format!("{} is absent", path.display()),
         );
         return;
     }
