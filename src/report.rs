@@ -209,11 +209,13 @@ pub fn measure(
     runs: usize,
     peers: &[PeerRow],
 ) -> Result<DemResult, ReportError> {
-    let raster =
+    let mut raster =
         read_dem(&dataset.tif, &ReadOptions::default()).map_err(|e| ReportError::Input {
             path: dataset.tif.clone(),
             message: e.to_string(),
         })?;
+    // Like for like: the peers' files carry no free text items (licence, source).
+    raster.metadata.items.clear();
     let codec_err = |message: String| ReportError::Codec {
         dem: dataset.name.clone(),
         message,

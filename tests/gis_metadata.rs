@@ -101,6 +101,24 @@ fn geotiff_metadata_survives_encode_and_decode() {
 }
 
 #[test]
+fn no_metadata_items_drops_only_the_free_items() {
+    let dir = scratch("gis_metadata");
+    let source = source_tif(dir.path());
+    let (full, bare) = (dir.path().join("full.ezw"), dir.path().join("bare.ezw"));
+    stdout(&["encode", s(&source), "-o", s(&full)]);
+    stdout(&["encode", s(&source), "-o", s(&bare), "--no-metadata-items"]);
+    let out = dir.path().join("bare.tif");
+    stdout(&["decode", s(&bare), "-o", s(&out)]);
+    let decoded = read_dem(&out, &ReadOptions::default()).unwrap();
+    let m = &decoded.metadata;
+    assert!(m.items.is_empty(), "{:?}", m.items);
+    assert_eq!((m.scale, m.offset), (Some(0.1), Some(100.0)));
+    assert_eq!(m.unit_type.as_deref(), Some("m"));
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    assert!(size(&bare) < size(&full));
+}
+
+#[test]
 fn asc_output_gets_its_prj_and_reads_it_back() {
     let dir = scratch("gis_metadata");
     let (_, out) = round_trip(dir.path(), "decoded.asc");
