@@ -8,6 +8,7 @@ use std::path::Path;
 use tiff::encoder::{colortype, Compression, DeflateLevel, TiffEncoder, TiffKind};
 use tiff::encoder::{TiffKindBig, TiffKindStandard};
 use tiff::tags::Tag;
+use wavemesh_codec::geokey;
 
 /// Fractal terrain: `octaves` layers of smoothly interpolated lattice noise, each of
 /// half the wavelength and `persistence` times the amplitude of the one before.
@@ -205,8 +206,14 @@ fn write_strips<W: Write + Seek, K: TiffKind>(
     )?;
     let origin = [0.0, 0.0, 0.0, 500_000.0, 5_000_000.0, 0.0];
     tags.write_tag(Tag::ModelTiepointTag, &origin[..])?;
-    // GTModelType projected, GTRasterType PixelIsArea, ProjectedCSType EPSG:32632.
-    let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32632];
+    // Projected, PixelIsArea, EPSG:32632 (UTM zone 32N).
+    #[rustfmt::skip]
+    let keys: [u16; 16] = [
+        1, 1, 0, 3,
+        geokey::MODEL_TYPE, 0, 1, geokey::MODEL_PROJECTED,
+        geokey::RASTER_TYPE, 0, 1, 1,
+        geokey::PROJECTED_TYPE, 0, 1, 32632,
+    ];
     tags.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
     let mut strip = vec![0i16; width as usize * ROWS_PER_STRIP as usize];
     let mut y = 0usize;

@@ -39,6 +39,6 @@ pub use error::CodecError;
 pub use pipeline::{
     decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
 };
-pub use raster::{Georef, Metadata, MetadataItem, Raster, SampleType, Samples};
+pub use raster::{geokey, Georef, Metadata, MetadataItem, Raster, SampleType, Samples};
 pub use significance::SignificanceMap;
 pub use wavelet::Wavelet;

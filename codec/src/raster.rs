@@ -184,6 +184,56 @@ pub struct Georef {
     pub geo_ascii_params: String,
 }
 
+/// GeoTIFF GeoKey ids and values the project reads and writes, and the lookup of a key
+/// in a GeoKeyDirectoryTag ([`Georef::geo_key_directory`]).
+pub mod geokey {
+    /// `GTModelTypeGeoKey`.
+    pub const MODEL_TYPE: u16 = 1024;
+    /// `GTRasterTypeGeoKey`.
+    pub const RASTER_TYPE: u16 = 1025;
+    /// `GeographicTypeGeoKey`: the EPSG code of a geographic CRS.
+    pub const GEOGRAPHIC_TYPE: u16 = 2048;
+    /// `GeogAngularUnitsGeoKey`.
+    pub const ANGULAR_UNITS: u16 = 2054;
+    /// `ProjectedCSTypeGeoKey`: the EPSG code of a projected CRS.
+    pub const PROJECTED_TYPE: u16 = 3072;
+    /// `ModelTypeProjected`.
+    pub const MODEL_PROJECTED: u16 = 1;
+    /// `ModelTypeGeographic`.
+    pub const MODEL_GEOGRAPHIC: u16 = 2;
+    /// `RasterPixelIsPoint`: tie points refer to pixel centres, not corners.
+    pub const PIXEL_IS_POINT: u16 = 2;
+    /// A key value meaning "user-defined", not an EPSG code.
+    pub const USER_DEFINED: u16 = 32767;
+
+    /// The value of key `id` held in the directory itself (location 0), if the
+    /// directory is well formed enough to hold it.
+    pub fn value(directory: &[u16], id: u16) -> Option<u16> {
+        let count = usize::from(*directory.get(3)?);
+        directory
+            .get(4..)?
+            .chunks_exact(4)
+            .take(count)
+            .find(|k| k[0] == id && k[1] == 0)
+            .map(|k| k[3])
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[test]
+        fn values_are_found_only_in_well_formed_directories() {
+            assert_eq!(value(&[], RASTER_TYPE), None);
+            assert_eq!(value(&[1, 1, 0, 5, 1025, 0], RASTER_TYPE), None);
+            assert_eq!(value(&[1, 1, 0, 1, 1025, 0, 1, 2], RASTER_TYPE), Some(2));
+            // Beyond the declared count, and stored in another tag: not a value.
+            assert_eq!(value(&[1, 1, 0, 0, 1025, 0, 1, 2], RASTER_TYPE), None);
+            assert_eq!(value(&[1, 1, 0, 1, 1025, 34736, 1, 0], RASTER_TYPE), None);
+        }
+    }
+}
+
 /// One free metadata item, as GDAL keeps them in a GeoTIFF's `GDAL_METADATA` tag
 /// (e.g. Copernicus DTED's `DTED_VerticalDatum = E08`).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]

@@ -18,14 +18,10 @@ use tiff::encoder::colortype::{self, ColorType};
 use tiff::encoder::{Compression, DeflateLevel, DirectoryEncoder, TiffEncoder, TiffKindStandard};
 use tiff::tags::{Predictor, Tag};
 use tiff::TiffError;
-use wavemesh_codec::{Georef, Metadata, Raster, SampleType, Samples};
+use wavemesh_codec::{geokey, Georef, Metadata, Raster, SampleType, Samples};
 
 use super::{checked_sample_count, gdal_metadata, make_raster, read_error, DemError, ReadOptions};
 
-/// GeoKey `GTRasterTypeGeoKey`.
-const RASTER_TYPE_KEY: u16 = 1025;
-/// `RasterPixelIsPoint`: tie points refer to pixel centres, not corners.
-const PIXEL_IS_POINT: u16 = 2;
 /// TIFF `PhotometricInterpretation` value `WhiteIsZero`.
 const WHITE_IS_ZERO: u16 = 0;
 
@@ -270,7 +266,7 @@ fn read_georef<R: Read + Seek>(
         }
         _ => from_tags = false,
     }
-    if from_tags && raster_type(&keys) == Some(PIXEL_IS_POINT) {
+    if from_tags && geokey::value(&keys, geokey::RASTER_TYPE) == Some(geokey::PIXEL_IS_POINT) {
         gt[0] -= 0.5 * (gt[1] + gt[2]);
         gt[3] -= 0.5 * (gt[4] + gt[5]);
     }
@@ -280,16 +276,6 @@ fn read_georef<R: Read + Seek>(
         geo_double_params: doubles.unwrap_or_default(),
         geo_ascii_params: ascii.unwrap_or_default(),
     }))
-}
-
-/// The `GTRasterTypeGeoKey` value of a GeoKey directory, if present and well formed.
-fn raster_type(keys: &[u16]) -> Option<u16> {
-    let count = usize::from(*keys.get(3)?);
-    keys.get(4..)?
-        .chunks_exact(4)
-        .take(count)
-        .find(|k| k[0] == RASTER_TYPE_KEY && k[1] == 0)
-        .map(|k| k[3])
 }
 
 /// Reads GDAL_NODATA (ASCII, e.g. `-32768` or `nan`).
@@ -398,7 +384,9 @@ impl GeoTags {
             ));
         }
         let mut gt = georef.geotransform;
-        if raster_type(&georef.geo_key_directory) == Some(PIXEL_IS_POINT) {
+        if geokey::value(&georef.geo_key_directory, geokey::RASTER_TYPE)
+            == Some(geokey::PIXEL_IS_POINT)
+        {
             gt[0] += 0.5 * (gt[1] + gt[2]);
             gt[3] += 0.5 * (gt[4] + gt[5]);
         }
@@ -637,13 +625,6 @@ mod tests {
         assert_eq!(format_nodata(-32768.0, SampleType::I16), "-32768");
         assert_eq!(format_nodata(-9999.5, SampleType::F32), "-9999.5");
         assert_eq!(format_nodata(f64::NAN, SampleType::F32), "nan");
-    }
-
-    #[test]
-    fn raster_type_parsing_is_lenient() {
-        assert_eq!(raster_type(&[]), None);
-        assert_eq!(raster_type(&[1, 1, 0, 5, 1025, 0]), None);
-        assert_eq!(raster_type(&[1, 1, 0, 1, 1025, 0, 1, 2]), Some(2));
     }
 
     #[test]

@@ -8,14 +8,10 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Georef, Raster};
+use wavemesh_codec::{geokey, Georef, Raster};
 
 use super::{gdal_metadata, read_error, DemError};
 use crate::atomic::write_atomic;
-
-/// GeoKeys naming a geographic or projected CRS by EPSG code.
-const GEOGRAPHIC_TYPE_KEY: u16 = 2048;
-const PROJECTED_TYPE_KEY: u16 = 3072;
 
 /// Largest `.prj` read (a WKT is a few kilobytes).
 const MAX_PRJ_BYTES: u64 = 1 << 20;
@@ -23,15 +19,9 @@ const MAX_PRJ_BYTES: u64 = 1 << 20;
 /// The EPSG code of the CRS `georef`'s GeoKeys name (projected first), if any.
 pub(super) fn epsg_code(georef: &Georef) -> Option<u16> {
     let dir = &georef.geo_key_directory;
-    let count = usize::from(*dir.get(3)?);
-    let keys: Vec<&[u16]> = dir.get(4..)?.chunks_exact(4).take(count).collect();
-    [PROJECTED_TYPE_KEY, GEOGRAPHIC_TYPE_KEY]
+    [geokey::PROJECTED_TYPE, geokey::GEOGRAPHIC_TYPE]
         .into_iter()
-        .find_map(|id| {
-            keys.iter()
-                .find(|k| k[0] == id && k[1] == 0 && (1024..32767).contains(&k[3]))
-                .map(|k| k[3])
-        })
+        .find_map(|id| geokey::value(dir, id).filter(|code| (1024..32767).contains(code)))
 }
 
 /// The raster's CRS as WKT: the text its source gave, or the EPSG definition of its
@@ -62,13 +52,18 @@ pub(super) fn keys_from_wkt(wkt: &str) -> Vec<u16> {
         return Vec::new();
     };
     let (model, key) = if projected {
-        (1, PROJECTED_TYPE_KEY)
+        (geokey::MODEL_PROJECTED, geokey::PROJECTED_TYPE)
     } else {
-        (2, GEOGRAPHIC_TYPE_KEY)
+        (geokey::MODEL_GEOGRAPHIC, geokey::GEOGRAPHIC_TYPE)
     };
-    vec![
-        1, 1, 0, 3, 1024, 0, 1, model, 1025, 0, 1, 1, key, 0, 1, code,
-    ]
+    #[rustfmt::skip]
+    let keys = vec![
+        1, 1, 0, 3,
+        geokey::MODEL_TYPE, 0, 1, model,
+        geokey::RASTER_TYPE, 0, 1, 1,
+        key, 0, 1, code,
+    ];
+    keys
 }
 
 /// Reads the `.prj` beside `path`, if there is one.

@@ -10,6 +10,10 @@
 //! geoid instead, which is within ~100 m of the ellipsoid and nearly constant across a
 //! DEM, so the shape is kept; only the frame's vertical origin is off by that amount.
 
+use wavemesh_codec::geokey::{
+    self, ANGULAR_UNITS, GEOGRAPHIC_TYPE, MODEL_GEOGRAPHIC, MODEL_PROJECTED, MODEL_TYPE,
+    PROJECTED_TYPE, USER_DEFINED,
+};
 use wavemesh_codec::Georef;
 
 /// WGS 84 semi-major axis, metres.
@@ -18,21 +22,6 @@ pub const WGS84_A: f64 = 6_378_137.0;
 pub const WGS84_F: f64 = 1.0 / 298.257_223_563;
 /// WGS 84 first eccentricity squared, `f·(2 − f)`.
 const WGS84_E2: f64 = WGS84_F * (2.0 - WGS84_F);
-
-/// GeoKey `GTModelTypeGeoKey`.
-const MODEL_TYPE_KEY: u16 = 1024;
-/// `ModelTypeProjected`.
-const MODEL_TYPE_PROJECTED: u16 = 1;
-/// `ModelTypeGeographic`.
-const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
-/// GeoKey `GeographicTypeGeoKey` (the EPSG code of a geographic CRS).
-const GEOGRAPHIC_TYPE_KEY: u16 = 2048;
-/// GeoKey `GeogAngularUnitsGeoKey`.
-const ANGULAR_UNITS_KEY: u16 = 2054;
-/// GeoKey `ProjectedCSTypeGeoKey` (the EPSG code of a projected CRS).
-const PROJECTED_TYPE_KEY: u16 = 3072;
-/// GeoKey value meaning "user-defined", not an EPSG code.
-const USER_DEFINED: u16 = 32767;
 
 /// Why a DEM's CRS cannot be put in a local metric frame.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -71,14 +60,14 @@ impl HorizontalCrs {
     /// projected when it is 1 (or only a projected code is given), unknown otherwise.
     pub fn of(georef: &Georef) -> Result<HorizontalCrs, FrameError> {
         let keys = &georef.geo_key_directory;
-        let code = |key| geo_key(keys, key).filter(|&c| c != 0 && c != USER_DEFINED);
-        let geographic = match geo_key(keys, MODEL_TYPE_KEY) {
-            Some(MODEL_TYPE_GEOGRAPHIC) => true,
-            Some(MODEL_TYPE_PROJECTED) => false,
+        let code = |key| geokey::value(keys, key).filter(|&c| c != 0 && c != USER_DEFINED);
+        let geographic = match geokey::value(keys, MODEL_TYPE) {
+            Some(MODEL_GEOGRAPHIC) => true,
+            Some(MODEL_PROJECTED) => false,
             Some(_) => return Ok(HorizontalCrs::Unknown),
             None => match (
-                geo_key(keys, GEOGRAPHIC_TYPE_KEY),
-                geo_key(keys, PROJECTED_TYPE_KEY),
+                geokey::value(keys, GEOGRAPHIC_TYPE),
+                geokey::value(keys, PROJECTED_TYPE),
             ) {
                 (Some(_), None) => true,
                 (_, Some(_)) => false,
@@ -87,11 +76,11 @@ impl HorizontalCrs {
         };
         if !geographic {
             return Ok(HorizontalCrs::Projected {
-                epsg: code(PROJECTED_TYPE_KEY),
+                epsg: code(PROJECTED_TYPE),
             });
         }
         // EPSG angular unit codes.
-        let degrees_per_unit = match geo_key(keys, ANGULAR_UNITS_KEY) {
+        let degrees_per_unit = match geokey::value(keys, ANGULAR_UNITS) {
             None | Some(9102) => 1.0,                   // degree (the default)
             Some(9101) => 180.0 / std::f64::consts::PI, // radian
             Some(9103) => 1.0 / 60.0,                   // arc-minute
@@ -100,7 +89,7 @@ impl HorizontalCrs {
             Some(unit) => return Err(FrameError::UnknownAngularUnit(unit)),
         };
         Ok(HorizontalCrs::Geographic {
-            epsg: code(GEOGRAPHIC_TYPE_KEY),
+            epsg: code(GEOGRAPHIC_TYPE),
             degrees_per_unit,
         })
     }
@@ -116,16 +105,6 @@ impl HorizontalCrs {
             HorizontalCrs::Projected { epsg: None } => "projected (user-defined)".into(),
         }
     }
-}
-
-/// The value of a GeoKey held in the directory itself (location 0), if present.
-fn geo_key(keys: &[u16], key: u16) -> Option<u16> {
-    let count = usize::from(*keys.get(3)?);
-    keys.get(4..)?
-        .chunks_exact(4)
-        .take(count)
-        .find(|k| k[0] == key && k[1] == 0)
-        .map(|k| k[3])
 }
 
 /// Earth-centred, earth-fixed coordinates (metres) of longitude `lon` and latitude `lat`

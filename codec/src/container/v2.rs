@@ -4,6 +4,9 @@
 
 use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader};
 use crate::error::CodecError;
+use crate::raster::geokey::{
+    GEOGRAPHIC_TYPE, MODEL_GEOGRAPHIC, MODEL_PROJECTED, MODEL_TYPE, PROJECTED_TYPE, RASTER_TYPE,
+};
 use crate::raster::{Georef, Metadata, MetadataItem};
 use crate::wavelet::Wavelet;
 use crate::Mode;
@@ -37,14 +40,6 @@ mod role {
     pub const DATASET_ITEM: u8 = 6;
     pub const BAND_ITEM: u8 = 7;
 }
-
-/// GeoKeys of an EPSG-coded CRS.
-const MODEL_TYPE_KEY: u16 = 1024;
-const RASTER_TYPE_KEY: u16 = 1025;
-const GEOGRAPHIC_TYPE_KEY: u16 = 2048;
-const PROJECTED_TYPE_KEY: u16 = 3072;
-const MODEL_PROJECTED: u16 = 1;
-const MODEL_GEOGRAPHIC: u16 = 2;
 
 /// Serialises `header` (checksum included) in the version-2 layout.
 pub(super) fn write(header: &Header) -> Vec<u8> {
@@ -418,9 +413,9 @@ impl EpsgCrs {
 
     fn code_key(&self) -> u16 {
         if self.model == MODEL_PROJECTED {
-            PROJECTED_TYPE_KEY
+            PROJECTED_TYPE
         } else {
-            GEOGRAPHIC_TYPE_KEY
+            GEOGRAPHIC_TYPE
         }
     }
 
@@ -429,8 +424,8 @@ impl EpsgCrs {
         #[rustfmt::skip]
         let keys = vec![
             1, 1, 0, 3,
-            MODEL_TYPE_KEY, 0, 1, self.model,
-            RASTER_TYPE_KEY, 0, 1, self.raster,
+            MODEL_TYPE, 0, 1, self.model,
+            RASTER_TYPE, 0, 1, self.raster,
             self.code_key(), 0, 1, self.code,
         ];
         keys
@@ -451,19 +446,19 @@ fn epsg_form(georef: &Georef) -> Option<EpsgCrs> {
             .find(|k| k[0] == id && k[1] == 0 && k[2] == 1)
             .map(|k| k[3])
     };
-    let model = value(MODEL_TYPE_KEY)?;
+    let model = value(MODEL_TYPE)?;
     let crs = EpsgCrs {
         model,
-        raster: value(RASTER_TYPE_KEY)?,
+        raster: value(RASTER_TYPE)?,
         code: value(if model == MODEL_PROJECTED {
-            PROJECTED_TYPE_KEY
+            PROJECTED_TYPE
         } else {
-            GEOGRAPHIC_TYPE_KEY
+            GEOGRAPHIC_TYPE
         })?,
     };
     let wgs84 = crs.model == MODEL_GEOGRAPHIC && crs.code == 4326;
     let restates = |k: &[u16]| match (k[0], k[1]) {
-        (MODEL_TYPE_KEY | RASTER_TYPE_KEY, 0) => true,
+        (MODEL_TYPE | RASTER_TYPE, 0) => true,
         (id, 0) if id == crs.code_key() => true,
         // GTCitation, GeogCitation, PCSCitation.
         (1026 | 2049 | 3073, 34737) => true,
