@@ -122,7 +122,11 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
     let samples = raster.len() as u64;
     let full_triangles = 2 * (raster.width - 1) * (raster.height - 1);
     let start = Instant::now();
-    let encoded = encode(raster, &EncodeOptions::new(Quality::Lossless, None)).expect("encode");
+    let encoded = encode(
+        raster,
+        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+    )
+    .expect("encode");
     let encode_seconds = start.elapsed().as_secs_f64();
     let with_map = DecodeOptions {
         significance_map: true,

@@ -82,7 +82,11 @@ fn camera(k: f64) -> View {
 fn bench_view(c: &mut Criterion) {
     let start = Instant::now();
     let raster = synthetic_terrain(SIDE);
-    let stream = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).expect("encodes");
+    let stream = encode(
+        &raster,
+        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+    )
+    .expect("encodes");
     let options = DecodeOptions {
         significance_map: true,
         ..DecodeOptions::default()

@@ -3,6 +3,7 @@
 //! DEM input/output, metrics and the command line around [`wavemesh_codec`].
 
 pub mod atomic;
+pub mod byte_source;
 pub mod dem;
 pub mod fuzzing;
 pub mod lod;

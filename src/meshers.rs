@@ -158,7 +158,10 @@ pub fn build(
 /// The zerotree mesh: lossless stream, decode with the significance map, tolerance or
 /// tolerance-searched budget.
 fn zerotree(raster: &Raster, surface: &Surface, budget: Budget) -> Result<GridMesh, MeshersError> {
-    let encoded = encode(raster, &EncodeOptions::new(Quality::Lossless, None))?;
+    let encoded = encode(
+        raster,
+        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+    )?;
     let options = DecodeOptions {
         significance_map: true,
         ..DecodeOptions::default()

@@ -672,7 +672,11 @@ pub fn compare_meshes(
             continue;
         };
         let crop = crop_raster(&raster, x0, y0, w, h).map_err(codec)?;
-        let encoded = encode(&crop, &EncodeOptions::new(Quality::Lossless, None)).map_err(codec)?;
+        let encoded = encode(
+            &crop,
+            &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+        )
+        .map_err(codec)?;
         let options = DecodeOptions {
             significance_map: true,
             ..DecodeOptions::default()

@@ -115,9 +115,68 @@ pub struct Header {
     pub georef: Option<Georef>,
     /// GIS metadata carried through (version 2; empty in version-1 files).
     pub metadata: Metadata,
+    /// The tile layout of a tiled file; `None` for a single stream. A tiled file's
+    /// header describes the whole raster and holds none of a stream's fields (mapping,
+    /// planes, section lengths keep their defaults): each tile is a stream of its own
+    /// (see [`crate::tiles`]).
+    pub tiling: Option<Tiling>,
+}
+
+/// How a tiled file cuts its raster: tiles of `tile_width × tile_height` samples from
+/// the top-left corner in row-major order (those on the right and bottom edges smaller),
+/// listed by an index section of `index_len` framed bytes right after the header.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tiling {
+    /// Columns of a tile.
+    pub tile_width: u32,
+    /// Rows of a tile.
+    pub tile_height: u32,
+    /// Bytes of the tile index, framed.
+    pub index_len: u64,
 }
 
 impl Header {
+    /// A header for a `width × height` raster with every stream field at its default
+    /// (no planes, no sections, unit mapping): what a tiled file's header holds, and
+    /// where an encoder starts.
+    pub fn whole_raster(
+        width: u32,
+        height: u32,
+        sample_type: SampleType,
+        wavelet: Wavelet,
+        levels: u8,
+        mode: Mode,
+    ) -> Header {
+        Header {
+            width,
+            height,
+            sample_type,
+            wavelet,
+            levels,
+            mode,
+            mapping: ValueMapping {
+                offset: 0.0,
+                step: 1.0,
+            },
+            max_error: 0.0,
+            coefficient_step: 1.0,
+            nodata: None,
+            valid_range: (0.0, 0.0),
+            top_plane: None,
+            bands: Vec::new(),
+            payload_len: 0,
+            payload_truncated: false,
+            mask_len: 0,
+            residual_len: 0,
+            correction_step: 0.0,
+            ladder_len: 0,
+            passes: Vec::new(),
+            georef: None,
+            metadata: Metadata::default(),
+            tiling: None,
+        }
+    }
+
     /// Number of samples.
     pub fn sample_count(&self) -> u64 {
         self.width as u64 * self.height as u64
@@ -179,6 +238,15 @@ impl Header {
             ));
         }
         header.validate()?;
+        if let Some(tiling) = header.tiling {
+            if logical_len(tiling.index_len).is_none() || tiling.index_len > MAX_FILE_LEN {
+                return Err(CodecError::InvalidHeader(format!(
+                    "tile index length {}",
+                    tiling.index_len
+                )));
+            }
+            return Ok((header, header_len));
+        }
         let ladder_len = header.ladder_len as usize;
         let mut file_len = header_len as u64;
         for (what, len) in [
@@ -502,8 +570,11 @@ pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usi
 /// The state of one framed section of a file, as [`verify`] finds it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SectionCheck {
-    /// "nodata mask", "payload", "residual section" or "ladder".
+    /// "nodata mask", "payload", "residual section" or "ladder"; in a tiled file "tile
+    /// index" or "tile" (a tile's header and sections together).
     pub name: &'static str,
+    /// The tile, for a tile of a tiled file.
+    pub tile: Option<u32>,
     /// File offset of the section.
     pub offset: u64,
     /// Framed length the header gives.
@@ -551,6 +622,9 @@ impl Verification {
 /// Checks the header checksum and every chunk checksum of a `.ezw` file.
 pub fn verify(data: &[u8]) -> Result<Verification, CodecError> {
     let (header, header_len) = Header::parse(data)?;
+    if header.tiling.is_some() {
+        return crate::tiles::verify_tiled(data);
+    }
     let mut offset = header_len as u64;
     let mut sections = Vec::new();
     for (name, len) in [
@@ -572,6 +646,7 @@ pub fn verify(data: &[u8]) -> Result<Verification, CodecError> {
         };
         sections.push(SectionCheck {
             name,
+            tile: None,
             offset,
             framed_len: len,
             chunks,
@@ -633,7 +708,7 @@ pub fn error_from_u16(code: u16) -> f64 {
 }
 
 /// Appends `value` as LEB128 (7 bits a byte, low first, high bit = more follows).
-fn write_varint(out: &mut Vec<u8>, mut value: u64) {
+pub(crate) fn write_varint(out: &mut Vec<u8>, mut value: u64) {
     while value >= 0x80 {
         out.push((value as u8) | 0x80);
         value >>= 7;
@@ -668,16 +743,16 @@ fn parse_ladder(bytes: &[u8], top_plane: Option<u8>) -> Option<Vec<PassRecord>> 
 
 /// Largest file the container describes (2^48 bytes, far beyond any DEM, and well inside
 /// `usize` arithmetic on 64-bit targets).
-const MAX_FILE_LEN: u64 = 1 << 48;
+pub(crate) const MAX_FILE_LEN: u64 = 1 << 48;
 
 /// Largest header this build writes (georeferencing included) — a bigger claimed length
 /// is corruption, not truncation.
-const MAX_HEADER_LEN: usize = 1 << 24;
+pub(crate) const MAX_HEADER_LEN: usize = 1 << 24;
 
 /// Bounds-checked little-endian reader.
-struct Reader<'a> {
-    data: &'a [u8],
-    pos: usize,
+pub(crate) struct Reader<'a> {
+    pub(crate) data: &'a [u8],
+    pub(crate) pos: usize,
 }
 
 impl<'a> Reader<'a> {
@@ -693,10 +768,10 @@ impl<'a> Reader<'a> {
     fn array<const N: usize>(&mut self) -> Result<[u8; N], CodecError> {
         Ok(self.bytes(N)?.try_into().expect("exact length"))
     }
-    fn u8(&mut self) -> Result<u8, CodecError> {
+    pub(crate) fn u8(&mut self) -> Result<u8, CodecError> {
         Ok(self.bytes(1)?[0])
     }
-    fn u16(&mut self) -> Result<u16, CodecError> {
+    pub(crate) fn u16(&mut self) -> Result<u16, CodecError> {
         Ok(u16::from_le_bytes(self.array()?))
     }
     fn u32(&mut self) -> Result<u32, CodecError> {
@@ -705,7 +780,7 @@ impl<'a> Reader<'a> {
     fn u64(&mut self) -> Result<u64, CodecError> {
         Ok(u64::from_le_bytes(self.array()?))
     }
-    fn varint(&mut self) -> Result<u64, CodecError> {
+    pub(crate) fn varint(&mut self) -> Result<u64, CodecError> {
         let mut value = 0u64;
         for shift in (0..64).step_by(7) {
             let byte = self.u8()?;
@@ -792,6 +867,7 @@ mod tests {
                     band: false,
                 }],
             },
+            tiling: None,
         }
     }
 

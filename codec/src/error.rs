@@ -4,6 +4,7 @@ use thiserror::Error;
 
 /// Everything that can go wrong while encoding or decoding, split by cause.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum CodecError {
     /// The data does not start with the `.ezw` magic bytes.
     #[error("not an .ezw file (wrong magic bytes)")]
@@ -57,6 +58,10 @@ pub enum CodecError {
     /// The encoder was given parameters it cannot honour.
     #[error("invalid encoder parameters: {0}")]
     InvalidParameters(String),
+    /// Reading the bytes of a stream failed (a file or a remote source behind
+    /// [`crate::tiles::ByteSource`]).
+    #[error("reading failed: {0}")]
+    Read(String),
     /// The raster holds values the coder cannot represent (an infinite sample, a range
     /// too wide for exact integer coding); the message says what would code it.
     #[error("cannot code these samples: {0}")]

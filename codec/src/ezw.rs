@@ -601,6 +601,8 @@ pub struct EncodedPayload {
     pub top_plane: Option<u32>,
     /// One record per completed pass.
     pub passes: Vec<PassRecord>,
+    /// Estimated sum of squared pixel errors before the first pass.
+    pub initial_error: f64,
     /// Whether every pass down to plane 0 was coded (false when stopped at a budget).
     pub complete: bool,
 }
@@ -820,6 +822,7 @@ pub fn encode(
         bytes,
         top_plane: top,
         passes,
+        initial_error,
         complete,
     }
 }

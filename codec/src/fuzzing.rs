@@ -300,7 +300,7 @@ pub fn decode_prefixes(data: &[u8]) {
 /// | 13 | mode: lossless 5/3, max-error, precision, 9/7 at a budget, 5/3 at a budget, any combination (bits 3–7) |
 /// | 14 | the error bound or precision step: from a table, or (≥ 0xF0) bytes 15–18 as an f32 |
 /// | 19, 20 | byte budget − 100 |
-/// | 21 | levels: the default, or (bit 7) the low 4 bits, capped at the maximum unless bit 6 |
+/// | 21 | levels: the default, or (bit 7) the low 4 bits, capped at the maximum unless bit 6; bit 5: tiles of 8 + (bytes 15–18 mod 32) a side |
 /// | 22–39 | used by [`decode_prefixes`] only |
 ///
 /// Checks: encoding succeeds where it must (lossless 5/3 of 8- and 16-bit integers and
@@ -688,9 +688,14 @@ fn arbitrary_encode_options(input: &mut Input, raster: &Raster) -> (EncodeOption
                 levels: None,
                 quality,
                 budget_bytes: (mode & 0x80 != 0).then_some(budget),
+                tile_size: None,
+                threads: 1,
             }
         }
     };
     options.levels = levels;
+    if levels_byte & 0x20 != 0 {
+        options.tile_size = Some(8 + (bound_bits & 31));
+    }
     (options, levels.is_some())
 }

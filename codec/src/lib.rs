@@ -32,13 +32,15 @@ pub mod quantize;
 pub mod raster;
 pub mod residual;
 pub mod significance;
+pub mod tiles;
 pub mod wavelet;
 
 pub use container::{Header, Mode};
 pub use error::CodecError;
 pub use pipeline::{
-    decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
+    decode, decode_window, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
 };
 pub use raster::{geokey, Georef, Metadata, MetadataItem, Raster, SampleType, Samples};
 pub use significance::SignificanceMap;
+pub use tiles::{ByteSource, TileGrid, Window};
 pub use wavelet::Wavelet;

@@ -12,6 +12,7 @@ use crate::quantize::{self, IntegerPlane, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{decode_residuals, encode_residuals};
 use crate::significance::SignificanceMap;
+use crate::tiles::{ByteSource, TileGrid, TiledLayout, Window, DEFAULT_TILE};
 use crate::wavelet::{self, Wavelet};
 use bitvec::order::Lsb0;
 use bitvec::slice::BitSlice;
@@ -36,8 +37,15 @@ pub struct EncodeOptions {
     pub levels: Option<u32>,
     /// Target quality of the complete stream.
     pub quality: Quality,
-    /// Total file size to stop at, in bytes (the stream is cut there exactly).
+    /// Total file size to stop at, in bytes (a single stream is cut there exactly; a
+    /// tiled file's tiles are cut where [`crate::tiles::allocate`] says, within it).
     pub budget_bytes: Option<u64>,
+    /// Largest tile side: a raster with a longer side is coded as a tiled file (tiles
+    /// as equal as the raster allows, see [`TileGrid::balanced`]); `None` codes one
+    /// stream whatever the size.
+    pub tile_size: Option<u32>,
+    /// Threads coding tiles at once (0: one per core). The bytes do not depend on it.
+    pub threads: usize,
 }
 
 impl EncodeOptions {
@@ -53,6 +61,17 @@ impl EncodeOptions {
             levels: None,
             quality,
             budget_bytes,
+            tile_size: Some(DEFAULT_TILE),
+            threads: 0,
+        }
+    }
+
+    /// The same options coding one stream whatever the raster's size: what the decoder's
+    /// significance map, and so the zerotree mesher, needs.
+    pub fn single_stream(self) -> EncodeOptions {
+        EncodeOptions {
+            tile_size: None,
+            ..self
         }
     }
 }
@@ -66,6 +85,9 @@ pub struct Encoded {
     pub header: Header,
     /// Bytes taken by the header.
     pub header_len: usize,
+    /// Estimated sum of squared errors of a decode of no pass (the start of the
+    /// rate–distortion ladder).
+    pub initial_error: f64,
 }
 
 /// Encodes a raster into a `.ezw` file.
@@ -74,7 +96,17 @@ pub struct Encoded {
 /// kept: the near-lossless one (samples quantised on `2⌊E⌋+1`, coded exactly) and a 9/7
 /// stream cut where it is cheapest, followed by corrections for the samples its
 /// reconstruction leaves more than E away (see [`encode_with_corrections`]).
+///
+/// A raster with a side longer than `options.tile_size` becomes a tiled file (see
+/// [`crate::tiles`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+    let grid = options
+        .tile_size
+        .and_then(|t| TileGrid::balanced(raster.width, raster.height, t as usize));
+    if let Some(grid) = grid {
+        check_dimensions(raster)?;
+        return crate::tiles::encode(raster, options, &grid);
+    }
     let (near_lossless, _) = encode_stream(raster, options)?;
     match (options.wavelet, options.quality, options.budget_bytes) {
         (Wavelet::Int53, Quality::MaxError(e), None)
@@ -106,6 +138,8 @@ pub fn encode_with_corrections(
         levels,
         quality: Quality::Lossless,
         budget_bytes: Some(limit as u64),
+        tile_size: None,
+        threads: 1,
     };
     let Ok((stream, parts)) = encode_stream(raster, &options) else {
         return Ok(None);
@@ -213,6 +247,7 @@ fn corrected_file(
     Ok(Some(Encoded {
         header_len,
         bytes,
+        initial_error: f64::NAN,
         header,
     }))
 }
@@ -240,21 +275,28 @@ struct Parts {
     payload: Vec<u8>,
 }
 
+/// Refuses a raster without samples, whose sample count is not its size, or with a side
+/// of 2^32 or more.
+fn check_dimensions(raster: &Raster) -> Result<(), CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    if width == 0
+        || height == 0
+        || raster.samples.len() != width * height
+        || width > u32::MAX as usize
+        || height > u32::MAX as usize
+    {
+        return Err(CodecError::Dimensions {
+            width: width as u64,
+            height: height as u64,
+        });
+    }
+    Ok(())
+}
+
 /// Encodes one stream as `options` say (no choice between methods).
 fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, Parts), CodecError> {
+    check_dimensions(raster)?;
     let (width, height) = (raster.width, raster.height);
-    if width == 0 || height == 0 || raster.samples.len() != width * height {
-        return Err(CodecError::Dimensions {
-            width: width as u64,
-            height: height as u64,
-        });
-    }
-    if width > u32::MAX as usize || height > u32::MAX as usize {
-        return Err(CodecError::Dimensions {
-            width: width as u64,
-            height: height as u64,
-        });
-    }
     let max_levels = wavelet::max_levels(width, height);
     let levels = options
         .levels
@@ -344,6 +386,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
         passes: Vec::new(),
         georef: raster.georef.clone(),
         metadata: raster.metadata.clone(),
+        tiling: None,
     };
     // With a budget, the payload may use what the smallest possible header leaves.
     let budget = options.budget_bytes.map(|b| b as usize);
@@ -363,6 +406,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
         prepared.midpoint,
         budget.map(|total| total - fixed),
     );
+    let payload_initial_error = payload.initial_error;
     let mut payload_bytes = payload.bytes;
     // File: header | mask | payload | residuals | ladder (sections framed).
     let file_len = |header: &Header, payload_len: usize, residual_len: usize| {
@@ -413,6 +457,7 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
             header_len,
             bytes,
             header,
+            initial_error: payload_initial_error,
         },
         Parts {
             mask: mask_bytes,
@@ -715,8 +760,11 @@ pub struct DecodeOptions {
     /// Treat any damage (a failed chunk checksum, trailing garbage) as an error instead of
     /// decoding the undamaged prefix.
     pub strict: bool,
-    /// Also return the per-node significance map ([`Decoded::significance`]).
+    /// Also return the per-node significance map ([`Decoded::significance`]; single
+    /// streams only).
     pub significance_map: bool,
+    /// Threads decoding tiles at once (0: one per core).
+    pub threads: usize,
 }
 
 /// A decoded stream.
@@ -746,6 +794,8 @@ pub struct Damage {
     pub section: &'static str,
     /// File offset where the damage starts.
     pub offset: u64,
+    /// The damaged tile of a tiled file, by index (row-major).
+    pub tile: Option<u32>,
 }
 
 /// Builds output samples from reconstructed values, in place where the output type is no
@@ -839,6 +889,54 @@ fn apply_corrections(
     }
 }
 
+/// Decodes `window` of a `.ezw` file (all of it when `None`) read from `source`, fetching
+/// only the bytes needed: of a tiled file the header, the index and the tiles the window
+/// touches (each cut as [`decode`] cuts it under `options.max_bytes`); of a single stream
+/// the whole file (or its `max_bytes` prefix), decoded and cropped.
+pub fn decode_window(
+    source: &mut impl ByteSource,
+    window: Option<Window>,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
+        return crate::tiles::decode_layout(source, &layout, window, options);
+    }
+    let data = source
+        .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
+        .map_err(|e| CodecError::Read(e.to_string()))?;
+    let mut decoded = decode(&data, options)?;
+    if let Some(w) = window {
+        let raster = &decoded.raster;
+        let whole = Window {
+            x: 0,
+            y: 0,
+            width: raster.width,
+            height: raster.height,
+        };
+        if w.intersection(&whole) != Some(w) {
+            return Err(CodecError::InvalidParameters(format!(
+                "window {}x{} at ({}, {}) is not inside the {}x{} raster",
+                w.width, w.height, w.x, w.y, whole.width, whole.height
+            )));
+        }
+        let mut part = raster.crop(w.x, w.y, w.width, w.height);
+        part.metadata = raster.metadata.clone();
+        part.georef = raster.georef.clone().map(|mut georef| {
+            let gt = &mut georef.geotransform;
+            gt[0] += w.x as f64 * gt[1] + w.y as f64 * gt[2];
+            gt[3] += w.x as f64 * gt[4] + w.y as f64 * gt[5];
+            georef
+        });
+        decoded.raster = part;
+    }
+    Ok(decoded)
+}
+
+/// Largest tile index a decode reads: a quarter of its memory limit.
+fn index_limit(options: &DecodeOptions) -> u64 {
+    options.limits.max_memory / 4
+}
+
 /// Working memory a decode needs, in bytes (used for the limit check).
 pub fn decode_memory(header: &Header) -> u64 {
     let n = header.sample_count();
@@ -846,8 +944,18 @@ pub fn decode_memory(header: &Header) -> u64 {
     n * (5 + (header.mask_len > 0) as u64)
 }
 
-/// Decodes a `.ezw` file, or as much of it as `options.max_bytes` (or the data) holds.
-pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
+/// Decodes a `.ezw` file, or as much of it as `options.max_bytes` (or the data) holds:
+/// a prefix of a single stream, or of a tiled file the prefix of each tile that
+/// [`crate::tiles::allocate`] gives it under that budget.
+pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
+    if let Some(layout) = TiledLayout::read(&mut data, index_limit(options))? {
+        if options.significance_map {
+            return Err(CodecError::InvalidParameters(
+                "significance maps come from single-stream files, not tiled ones".into(),
+            ));
+        }
+        return crate::tiles::decode_layout(&mut data, &layout, None, options);
+    }
     let data = match options.max_bytes {
         Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],
         _ => data,
@@ -883,6 +991,7 @@ pub fn decode(data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecErro
             damage = Some(Damage {
                 section: what,
                 offset: offset as u64,
+                tile: None,
             });
         }
     };

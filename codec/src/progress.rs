@@ -15,6 +15,8 @@ pub enum Stage {
     Transform,
     /// Bit-plane passes of the zerotree coder.
     Coding,
+    /// Whole tiles of a tiled file (a unit is one sample of a finished tile).
+    Tiles,
 }
 
 impl Stage {
@@ -23,6 +25,7 @@ impl Stage {
         match self {
             Stage::Transform => "transform",
             Stage::Coding => "coding",
+            Stage::Tiles => "tiles",
         }
     }
 }

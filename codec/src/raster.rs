@@ -136,6 +136,18 @@ impl Samples {
         }
     }
 
+    /// `len` samples of `sample_type`, all `value` (rounded and clamped like
+    /// [`Samples::from_f64`]).
+    pub fn filled(sample_type: SampleType, value: f64, len: usize) -> Samples {
+        match Samples::from_f64(sample_type, &[value]) {
+            Samples::U8(v) => Samples::U8(vec![v[0]; len]),
+            Samples::U16(v) => Samples::U16(vec![v[0]; len]),
+            Samples::I16(v) => Samples::I16(vec![v[0]; len]),
+            Samples::I32(v) => Samples::I32(vec![v[0]; len]),
+            Samples::F32(v) => Samples::F32(vec![v[0]; len]),
+        }
+    }
+
     /// All samples widened to `f64`.
     pub fn to_f64(&self) -> Vec<f64> {
         (0..self.len()).map(|i| self.get_f64(i)).collect()
@@ -345,6 +357,57 @@ impl Raster {
     pub fn valid_mask(&self) -> Vec<bool> {
         (0..self.len()).map(|i| self.is_valid(i)).collect()
     }
+
+    /// The `width × height` samples whose top-left corner is (`x`, `y`), with this
+    /// raster's nodata value and no georeferencing or metadata. Panics if the window
+    /// does not lie inside the raster.
+    pub fn crop(&self, x: usize, y: usize, width: usize, height: usize) -> Raster {
+        assert!(x + width <= self.width && y + height <= self.height);
+        fn rows<T: Copy>(v: &[T], stride: usize, x: usize, y: usize, w: usize, h: usize) -> Vec<T> {
+            let mut out = Vec::with_capacity(w * h);
+            for row in y..y + h {
+                out.extend_from_slice(&v[row * stride + x..row * stride + x + w]);
+            }
+            out
+        }
+        let s = self.width;
+        let samples = match &self.samples {
+            Samples::U8(v) => Samples::U8(rows(v, s, x, y, width, height)),
+            Samples::U16(v) => Samples::U16(rows(v, s, x, y, width, height)),
+            Samples::I16(v) => Samples::I16(rows(v, s, x, y, width, height)),
+            Samples::I32(v) => Samples::I32(rows(v, s, x, y, width, height)),
+            Samples::F32(v) => Samples::F32(rows(v, s, x, y, width, height)),
+        };
+        Raster {
+            width,
+            height,
+            samples,
+            nodata: self.nodata,
+            georef: None,
+            metadata: Metadata::default(),
+        }
+    }
+
+    /// Copies `part`'s samples into this raster with its top-left corner at (`x`, `y`).
+    /// Panics if the types differ or `part` does not fit.
+    pub fn paste(&mut self, x: usize, y: usize, part: &Raster) {
+        assert!(x + part.width <= self.width && y + part.height <= self.height);
+        fn rows<T: Copy>(to: &mut [T], stride: usize, from: &[T], x: usize, y: usize, w: usize) {
+            for (k, row) in from.chunks_exact(w).enumerate() {
+                let start = (y + k) * stride + x;
+                to[start..start + w].copy_from_slice(row);
+            }
+        }
+        let (s, w) = (self.width, part.width);
+        match (&mut self.samples, &part.samples) {
+            (Samples::U8(to), Samples::U8(from)) => rows(to, s, from, x, y, w),
+            (Samples::U16(to), Samples::U16(from)) => rows(to, s, from, x, y, w),
+            (Samples::I16(to), Samples::I16(from)) => rows(to, s, from, x, y, w),
+            (Samples::I32(to), Samples::I32(from)) => rows(to, s, from, x, y, w),
+            (Samples::F32(to), Samples::F32(from)) => rows(to, s, from, x, y, w),
+            _ => panic!("pasting samples of another type"),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -378,6 +441,19 @@ mod tests {
         let mut r = Raster::new(3, 1, Samples::F32(vec![1.0, f32::NAN, -9999.0])).unwrap();
         r.nodata = Some(-9999.0);
         assert_eq!(r.valid_mask(), vec![true, false, false]);
+    }
+
+    #[test]
+    fn crop_then_paste_gives_the_raster_back() {
+        let values: Vec<i16> = (0..7 * 5).map(|i| i as i16 * 3 - 40).collect();
+        let whole = Raster::new(7, 5, Samples::I16(values)).unwrap();
+        let mut rebuilt = Raster::new(7, 5, Samples::I16(vec![0; 35])).unwrap();
+        for (x, y, w, h) in [(0, 0, 4, 3), (4, 0, 3, 3), (0, 3, 4, 2), (4, 3, 3, 2)] {
+            let part = whole.crop(x, y, w, h);
+            assert_eq!(part.samples.get_f64(0), whole.samples.get_f64(y * 7 + x));
+            rebuilt.paste(x, y, &part);
+        }
+        assert_eq!(rebuilt, whole);
     }
 
     #[test]

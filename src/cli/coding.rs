@@ -3,11 +3,13 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
+use wavemesh::byte_source::FileSource;
 use wavemesh::metrics::{self, Distortion};
 use wavemesh_codec::container::physical_offset;
+use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{
-    decode as decode_stream, encode as encode_raster, DecodeOptions, EncodeOptions, Header,
-    Quality, Raster,
+    decode as decode_stream, decode_window, encode as encode_raster, DecodeOptions, EncodeOptions,
+    Header, Quality, Raster, Window,
 };
 
 use super::mesh::{mesh_decoded, print_mesh_summary, MeshOptions, MeshReport};
@@ -42,6 +44,13 @@ pub struct EncodeArgs {
     /// Decomposition levels (default: until the coarsest band is at most 8 samples wide).
     #[arg(long)]
     levels: Option<u32>,
+    /// Largest tile side: a raster with a longer side is coded as independent tiles
+    /// (as equal as the raster allows) with an index, so windows and rates read only
+    /// what they need; 0 codes one stream whatever the size.
+    #[arg(long, value_name = "N", default_value_t = wavemesh_codec::tiles::DEFAULT_TILE)]
+    tile: u32,
+    #[command(flatten)]
+    threads: ThreadArgs,
     /// Report PSNR/RMSE/max error of the encoded stream against this DEM.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
@@ -71,9 +80,19 @@ pub struct DecodeArgs {
     /// Decode only the first bpp·width·height/8 bytes of the file.
     #[arg(long, conflicts_with = "bytes")]
     bpp: Option<f64>,
-    /// Decode only the first N bytes of the file.
+    /// Decode only the first N bytes of the file (of a tiled file: N bytes in all, each
+    /// tile's share chosen for the least error).
     #[arg(long, value_name = "N")]
     bytes: Option<u64>,
+    /// Decode only this pixel window: first column, first row, width, height. A tiled
+    /// file is read only where the window touches it.
+    #[arg(long, value_name = "X,Y,W,H", conflicts_with = "bbox")]
+    window: Option<String>,
+    /// Decode only the samples inside this box, in the file's CRS units (north-up files).
+    #[arg(long, value_name = "MINX,MINY,MAXX,MAXY", allow_hyphen_values = true)]
+    bbox: Option<String>,
+    #[command(flatten)]
+    threads: ThreadArgs,
     /// Report PSNR/RMSE/max error of the decoded DEM against this one.
     #[arg(long, value_name = "ORIGINAL")]
     reference: Option<PathBuf>,
@@ -91,6 +110,14 @@ pub struct DecodeArgs {
     json: bool,
     #[command(flatten, next_help_heading = "Limits, and reading the --reference DEM")]
     input_args: InputArgs,
+}
+
+/// Threads for coding tiles.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct ThreadArgs {
+    /// Threads coding tiles at once (0: one per core). The output does not depend on it.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
 }
 
 #[derive(Debug, clap::Args)]
@@ -177,6 +204,8 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         ));
     }
     options.levels = args.levels;
+    options.tile_size = (args.tile > 0).then_some(args.tile);
+    options.threads = args.threads.threads;
     let (encoded, seconds, peak) = with_codec_progress("encoding", Workload::of(&raster), || {
         timed(|| encode_raster(&raster, &options))
     });
@@ -315,6 +344,11 @@ struct DecodeReport<'a> {
     output: &'a Path,
     width: u32,
     height: u32,
+    /// The decoded window (x, y, width, height), when one was asked for.
+    window: Option<[usize; 4]>,
+    /// Tiles in the file (tiled files).
+    tiles: Option<usize>,
+    file_bytes: u64,
     bytes_read: u64,
     bytes_used: u64,
     bpp: f64,
@@ -335,15 +369,18 @@ struct DecodeReport<'a> {
 struct DamageReport {
     section: &'static str,
     offset: u64,
+    tile: Option<u32>,
 }
 
 pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
     let to_stdout = writes_to_stdout(&args.output, args.json)?;
-    let data = std::fs::read(&args.input)
+    let stream_error = |e| CliError::Stream(args.input.clone(), e);
+    let mut source = FileSource::open(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let (header, header_len) =
-        Header::parse(&data).map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let limits = args.input_args.limits();
+    let (header, header_len) = read_header(&mut source).map_err(stream_error)?;
+    let layout = TiledLayout::read(&mut source, limits.max_memory / 4).map_err(stream_error)?;
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
         (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {
@@ -356,42 +393,41 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
         (None, bytes) => bytes,
     };
-    let smallest = header_len as u64 + u64::from(header.mask_len);
+    let smallest = match &layout {
+        Some(l) => l.head_len() + l.entries.iter().map(|e| e.head_len).sum::<u64>(),
+        None => header_len as u64 + u64::from(header.mask_len),
+    };
     let max_bytes = max_bytes.map(|asked| at_least_decodable(asked, smallest, samples));
+    let window = requested_window(args, &header)?;
     let options = DecodeOptions {
         max_bytes,
         max_passes: None,
-        limits: args.input_args.limits(),
+        limits,
         strict: args.strict,
         significance_map: args.mesh.is_some(),
+        threads: args.threads.threads,
     };
-    if args.mesh.is_none() && !args.mesh_options.is_default() {
-        return Err(CliError::Usage(
-            "mesh options (--threshold, --triangles, --mesh-error, ...) need --mesh".into(),
-        ));
-    }
-    if let Some(mesh) = &args.mesh {
-        refuse_overwriting_input(&args.input, mesh)?;
-        if mesh == &args.output {
-            return Err(CliError::Usage("--mesh and -o name the same file".into()));
-        }
-        args.mesh_options
-            .check(mesh, samples, args.input_args.max_memory())?;
-    }
-    let bytes_read = max_bytes.map_or(data.len() as u64, |m| m.min(data.len() as u64));
+    check_mesh_args(args, &header, samples)?;
     let (decoded, seconds, peak) = with_codec_progress(
         "decoding",
         Workload::new(samples, header.sample_type),
-        || timed(|| decode_stream(&data, &options)),
+        || timed(|| decode_window(&mut source, window, &options)),
     );
-    let decoded = decoded.map_err(|e| CliError::Stream(args.input.clone(), e))?;
+    let decoded = decoded.map_err(stream_error)?;
+    let bytes_read = match &layout {
+        Some(_) => source.bytes_read(),
+        None => max_bytes.map_or(source.len(), |m| m.min(source.len())),
+    };
     if let Some(d) = decoded.damage {
+        let what = match d.tile {
+            Some(tile) => format!("tile {tile} ({})", d.section),
+            None => d.section.to_string(),
+        };
         eprintln!(
-            "wavemesh: warning: {}: {} damaged at byte {}; decoded the {} bytes before it (--strict makes this an error)",
+            "wavemesh: warning: {}: {what} damaged at byte {}; decoded what precedes it{} (--strict makes this an error)",
             args.input.display(),
-            d.section,
             d.offset,
-            decoded.bytes_used
+            if d.tile.is_some() { " and the other tiles" } else { "" },
         );
     }
     if args.mesh.is_some() {
@@ -417,14 +453,18 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         )?),
         None => None,
     };
-    let raster_bytes = samples * header.sample_type.bytes() as u64;
+    let out_samples = decoded.raster.len() as u64;
+    let raster_bytes = out_samples * header.sample_type.bytes() as u64;
     let report = DecodeReport {
         schema_version: SCHEMA_VERSION,
         command: "decode",
         input: &args.input,
         output: &args.output,
-        width: header.width,
-        height: header.height,
+        width: decoded.raster.width as u32,
+        height: decoded.raster.height as u32,
+        window: window.map(|w| [w.x, w.y, w.width, w.height]),
+        tiles: layout.as_ref().map(|l| l.grid.count()),
+        file_bytes: source.len(),
         bytes_read,
         bytes_used: decoded.bytes_used,
         bpp: metrics::bits_per_sample(bytes_read, header.width as usize, header.height as usize),
@@ -432,13 +472,14 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         passes_total: header.top_plane.map_or(0, |t| t as usize + 1),
         complete: decoded.complete,
         decode_seconds: seconds,
-        decode_msamples_per_second: samples as f64 / seconds / 1e6,
+        decode_msamples_per_second: out_samples as f64 / seconds / 1e6,
         decode_peak_heap_bytes: peak as u64,
         raster_bytes,
         peak_heap_per_raster_byte: peak as f64 / raster_bytes as f64,
         damage: decoded.damage.map(|d| DamageReport {
             section: d.section,
             offset: d.offset,
+            tile: d.tile,
         }),
         distortion,
         mesh,
@@ -453,7 +494,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             args.input.display(),
             args.output.display(),
             report.bytes_read,
-            data.len(),
+            report.file_bytes,
             report.bpp,
             report.passes_decoded,
             report.passes_total,
@@ -469,6 +510,113 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// The window `--window` or `--bbox` asks for, if any.
+fn requested_window(args: &DecodeArgs, header: &Header) -> Result<Option<Window>, CliError> {
+    let numbers = |text: &str, flag: &str| -> Result<Vec<f64>, CliError> {
+        let values: Vec<f64> = text
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| {
+                CliError::Usage(format!(
+                    "{flag} wants four numbers separated by commas, got {text:?}"
+                ))
+            })?;
+        if values.len() != 4 || values.iter().any(|v| !v.is_finite()) {
+            return Err(CliError::Usage(format!(
+                "{flag} wants four finite numbers separated by commas, got {text:?}"
+            )));
+        }
+        Ok(values)
+    };
+    let (width, height) = (header.width as f64, header.height as f64);
+    let pixels = match (&args.window, &args.bbox) {
+        (Some(text), _) => {
+            let v = numbers(text, "--window")?;
+            if v.iter().any(|x| x.fract() != 0.0 || *x < 0.0) || v[2] < 1.0 || v[3] < 1.0 {
+                return Err(CliError::Usage(format!(
+                    "--window wants whole pixels X,Y,W,H with W and H at least 1, got {text:?}"
+                )));
+            }
+            if v[0] + v[2] > width || v[1] + v[3] > height {
+                return Err(CliError::Usage(format!(
+                    "--window {text} does not fit the {width}x{height} raster"
+                )));
+            }
+            [v[0], v[1], v[0] + v[2], v[1] + v[3]]
+        }
+        (None, Some(text)) => bbox_pixels(&numbers(text, "--bbox")?, header, text)?,
+        (None, None) => return Ok(None),
+    };
+    Ok(Some(Window {
+        x: pixels[0] as usize,
+        y: pixels[1] as usize,
+        width: (pixels[2] - pixels[0]) as usize,
+        height: (pixels[3] - pixels[1]) as usize,
+    }))
+}
+
+/// The pixel columns and rows `[x0, y0, x1, y1)` covering a box in CRS units, clipped
+/// to the raster.
+fn bbox_pixels(b: &[f64], header: &Header, text: &str) -> Result<[f64; 4], CliError> {
+    let Some(gt) = header.georef.as_ref().map(|g| g.geotransform) else {
+        return Err(CliError::Usage(
+            "--bbox needs a georeferenced file; use --window in pixels".into(),
+        ));
+    };
+    if gt[2] != 0.0 || gt[4] != 0.0 || gt[1] == 0.0 || gt[5] == 0.0 {
+        return Err(CliError::Usage(
+            "--bbox needs a north-up file (no rotation); use --window in pixels".into(),
+        ));
+    }
+    if b[0] >= b[2] || b[1] >= b[3] {
+        return Err(CliError::Usage(format!(
+            "--bbox wants MINX,MINY,MAXX,MAXY with min < max, got {text}"
+        )));
+    }
+    let columns = [(b[0] - gt[0]) / gt[1], (b[2] - gt[0]) / gt[1]];
+    let rows = [(b[1] - gt[3]) / gt[5], (b[3] - gt[3]) / gt[5]];
+    let (w, h) = (header.width as f64, header.height as f64);
+    let x0 = columns[0].min(columns[1]).floor().clamp(0.0, w);
+    let x1 = columns[0].max(columns[1]).ceil().clamp(0.0, w);
+    let y0 = rows[0].min(rows[1]).floor().clamp(0.0, h);
+    let y1 = rows[0].max(rows[1]).ceil().clamp(0.0, h);
+    if x1 <= x0 || y1 <= y0 {
+        return Err(CliError::Usage(format!(
+            "--bbox {text} does not overlap the raster"
+        )));
+    }
+    Ok([x0, y0, x1, y1])
+}
+
+/// Refuses mesh options without `--mesh`, and `--mesh` where it cannot be made.
+fn check_mesh_args(args: &DecodeArgs, header: &Header, samples: u64) -> Result<(), CliError> {
+    if args.mesh.is_none() && !args.mesh_options.is_default() {
+        return Err(CliError::Usage(
+            "mesh options (--threshold, --triangles, --mesh-error, ...) need --mesh".into(),
+        ));
+    }
+    let Some(mesh) = &args.mesh else {
+        return Ok(());
+    };
+    if header.tiling.is_some() {
+        return Err(CliError::Usage(
+            "--mesh needs a single-stream file: this one is tiled (encode with --tile 0, or mesh the decoded DEM with wavemesh mesh)".into(),
+        ));
+    }
+    if args.window.is_some() || args.bbox.is_some() {
+        return Err(CliError::Usage(
+            "--mesh meshes the whole file: drop --window/--bbox".into(),
+        ));
+    }
+    refuse_overwriting_input(&args.input, mesh)?;
+    if mesh == &args.output {
+        return Err(CliError::Usage("--mesh and -o name the same file".into()));
+    }
+    args.mesh_options
+        .check(mesh, samples, args.input_args.max_memory())
 }
 
 #[derive(Serialize)]
@@ -514,6 +662,15 @@ struct InfoReport<'a> {
 }
 
 pub fn info(args: &InfoArgs) -> Result<(), CliError> {
+    let mut source = FileSource::open(&args.input)
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    let max_index = args.limit_args.limits().max_memory / 4;
+    if let Some(layout) = TiledLayout::read(&mut source, max_index)
+        .map_err(|e| CliError::Stream(args.input.clone(), e))?
+    {
+        super::tiled_info::run(&args.input, args.json, &layout, source.len());
+        return Ok(());
+    }
     let data = std::fs::read(&args.input)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
     let (header, header_len) =

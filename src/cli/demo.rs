@@ -199,8 +199,10 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let mut rows = Vec::new();
 
     // Lossless 5/3.
-    let (lossless, seconds) =
-        encode_or_fail(&raster, &EncodeOptions::new(Quality::Lossless, None))?;
+    let (lossless, seconds) = encode_or_fail(
+        &raster,
+        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+    )?;
     write_output(&args.out_dir.join("lossless.ezw"), &lossless.bytes)?;
     let mut row = decode_row(&raster, &lossless, "5/3 lossless", None, "all".into())?;
     row.seconds += seconds;

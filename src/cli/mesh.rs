@@ -470,7 +470,7 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         }
         None => None,
     };
-    let options = EncodeOptions::new(Quality::Lossless, budget);
+    let options = EncodeOptions::new(Quality::Lossless, budget).single_stream();
     let (encoded, encode_seconds, _) =
         with_codec_progress("encoding", Workload::of(&raster), || {
             timed(|| encode(&raster, &options))
@@ -597,7 +597,7 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         }
         (None, None) => TableRows::AllPasses,
     };
-    let mut options = EncodeOptions::new(Quality::Lossless, None);
+    let mut options = EncodeOptions::new(Quality::Lossless, None).single_stream();
     if args.wavelet == WaveletArg::Cdf97 {
         let Some(top) = args
             .bpp

@@ -7,6 +7,7 @@ mod meshers;
 mod metadata_report;
 mod report;
 mod synth;
+mod tiled_info;
 mod verify;
 mod view;
 

@@ -20,6 +20,7 @@ pub struct VerifyArgs {
 #[derive(Serialize)]
 struct SectionReport {
     name: &'static str,
+    tile: Option<u32>,
     offset: u64,
     bytes: u64,
     chunks: u64,
@@ -62,6 +63,7 @@ pub fn run(args: &VerifyArgs) -> Result<(), CliError> {
             .iter()
             .map(|s| SectionReport {
                 name: s.name,
+                tile: s.tile,
                 offset: s.offset,
                 bytes: s.framed_len,
                 chunks: s.chunks,
@@ -92,9 +94,13 @@ pub fn run(args: &VerifyArgs) -> Result<(), CliError> {
                 (None, true) => "ok".to_string(),
                 (None, false) => "truncated".to_string(),
             };
+            let name = match s.tile {
+                Some(tile) => format!("{} {tile}", s.name),
+                None => s.name.to_string(),
+            };
             println!(
                 "  {:<17} at {:>10}, {:>10} bytes, {}/{} chunks verified: {}",
-                s.name, s.offset, s.bytes, s.verified_chunks, s.chunks, state
+                name, s.offset, s.bytes, s.verified_chunks, s.chunks, state
             );
         }
         if report.trailing_bytes > 0 {

@@ -69,6 +69,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         passes: Vec::new(),
         georef,
         metadata: Metadata::default(),
+        tiling: None,
     })
 }
 

@@ -2,12 +2,12 @@
 //! EPSG-coded form of the georeferencing and an optional metadata block.
 //! `codec/FORMAT.md` gives the byte layout.
 
-use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader};
+use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader, Tiling};
 use crate::error::CodecError;
 use crate::raster::geokey::{
     GEOGRAPHIC_TYPE, MODEL_GEOGRAPHIC, MODEL_PROJECTED, MODEL_TYPE, PROJECTED_TYPE, RASTER_TYPE,
 };
-use crate::raster::{Georef, Metadata, MetadataItem};
+use crate::raster::{Georef, Metadata, MetadataItem, SampleType};
 use crate::wavelet::Wavelet;
 use crate::Mode;
 
@@ -43,6 +43,9 @@ mod role {
 
 /// Serialises `header` (checksum included) in the version-2 layout.
 pub(super) fn write(header: &Header) -> Vec<u8> {
+    if let Some(tiling) = header.tiling {
+        return write_tiled(header, tiling);
+    }
     let mut body = Vec::with_capacity(128);
     write_varint(&mut body, flags(header));
     write_varint(&mut body, header.width.into());
@@ -98,6 +101,37 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     finish(body)
 }
 
+/// Serialises the header of a tiled file: the raster's description, the tile size and
+/// the index length, none of a stream's fields.
+fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
+    let mut body = Vec::with_capacity(128);
+    write_varint(&mut body, flags(header));
+    write_varint(&mut body, header.width.into());
+    write_varint(&mut body, header.height.into());
+    body.extend_from_slice(&[
+        header.sample_type.code() | header.wavelet.code() << 3 | header.mode.code() << 5,
+        header.levels,
+    ]);
+    write_varint(&mut body, tiling.tile_width.into());
+    write_varint(&mut body, tiling.tile_height.into());
+    if max_error_listed(header) {
+        write_number(&mut body, header.max_error);
+    }
+    write_number(&mut body, header.valid_range.0);
+    write_number(&mut body, header.valid_range.1);
+    if let Some(nodata) = header.nodata {
+        write_number(&mut body, nodata);
+    }
+    write_varint(&mut body, tiling.index_len);
+    if let Some(georef) = &header.georef {
+        write_georef(&mut body, georef);
+    }
+    if !header.metadata.is_empty() {
+        write_metadata(&mut body, &header.metadata);
+    }
+    finish(body)
+}
+
 /// Prepends the magic, version and header length, and appends the CRC.
 fn finish(body: Vec<u8>) -> Vec<u8> {
     let prefix = super::MAGIC.len() + 2;
@@ -122,15 +156,17 @@ fn varint_len(value: u64) -> usize {
 
 fn flags(header: &Header) -> u64 {
     let mut flags = 0;
+    let single = header.tiling.is_none();
     for (set, bit) in [
         (header.nodata.is_some(), flag::NODATA),
         (header.georef.is_some(), flag::GEOREF),
         (!header.metadata.is_empty(), flag::METADATA),
-        (header.payload_truncated, flag::PAYLOAD_TRUNCATED),
-        (bands_listed(header), flag::BANDS_LISTED),
-        (header.mask_len > 0, flag::MASK),
-        (has_residual(header), flag::RESIDUAL),
+        (single && header.payload_truncated, flag::PAYLOAD_TRUNCATED),
+        (single && bands_listed(header), flag::BANDS_LISTED),
+        (single && header.mask_len > 0, flag::MASK),
+        (single && has_residual(header), flag::RESIDUAL),
         (max_error_listed(header), flag::MAX_ERROR),
+        (!single, flag::TILED),
     ] {
         if set {
             flags |= bit;
@@ -180,9 +216,15 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
     };
     let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
     if flags & flag::TILED != 0 {
-        return Err(CodecError::InvalidHeader(
-            "a tiled file (this build reads single-tile files)".into(),
-        ));
+        return parse_tiled(
+            r,
+            flags,
+            (width, height),
+            sample_type,
+            wavelet,
+            levels,
+            mode,
+        );
     }
     let offset = r.number()?;
     let (step, coefficient_step) = match wavelet {
@@ -258,6 +300,65 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         passes: Vec::new(),
         georef,
         metadata,
+        tiling: None,
+    })
+}
+
+/// The fields of a tiled file's header after `levels` (see [`write_tiled`]).
+fn parse_tiled(
+    r: &mut Reader,
+    flags: u64,
+    (width, height): (u32, u32),
+    sample_type: SampleType,
+    wavelet: Wavelet,
+    levels: u8,
+    mode: Mode,
+) -> Result<Header, CodecError> {
+    let stream_only = flag::PAYLOAD_TRUNCATED | flag::BANDS_LISTED | flag::MASK | flag::RESIDUAL;
+    if flags & stream_only != 0 {
+        return Err(CodecError::InvalidHeader(format!(
+            "flags {flags:#x} of a tiled file"
+        )));
+    }
+    let tile_width = r.varint_u32("tile width")?;
+    let tile_height = r.varint_u32("tile height")?;
+    if tile_width == 0 || tile_height == 0 {
+        return Err(CodecError::InvalidHeader("tile size 0".into()));
+    }
+    let max_error = if flags & flag::MAX_ERROR != 0 {
+        r.number()?
+    } else {
+        implied_max_error(mode)
+    };
+    let valid_range = (r.number()?, r.number()?);
+    let nodata = if flags & flag::NODATA != 0 {
+        Some(r.number()?)
+    } else {
+        None
+    };
+    let index_len = r.varint()?;
+    let georef = if flags & flag::GEOREF != 0 {
+        Some(read_georef(r)?)
+    } else {
+        None
+    };
+    let metadata = if flags & flag::METADATA != 0 {
+        read_metadata(r)?
+    } else {
+        Metadata::default()
+    };
+    Ok(Header {
+        max_error,
+        valid_range,
+        nodata,
+        georef,
+        metadata,
+        tiling: Some(Tiling {
+            tile_width,
+            tile_height,
+            index_len,
+        }),
+        ..Header::whole_raster(width, height, sample_type, wavelet, levels, mode)
     })
 }
 

@@ -1,0 +1,213 @@
+//! The tile index: for every tile, where its stream lies and its rate–distortion ladder,
+//! so a reader can plan every range it fetches from the header and the index alone.
+
+use std::io;
+
+use super::{ByteSource, TileGrid};
+use crate::container::{
+    error_from_u16, error_to_u16, logical_len, unframe, write_varint, Header, Reader,
+    MAX_HEADER_LEN,
+};
+use crate::error::CodecError;
+
+/// One tile's entry in the index. Offsets count from the start of the tile's stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileEntry {
+    /// Bytes of the tile's stream in the file.
+    pub len: u64,
+    /// Bytes of its header and nodata mask: the shortest prefix that decodes.
+    pub head_len: u64,
+    /// Estimated sum of squared errors of a decode of the head alone.
+    pub initial_error: f64,
+    /// Per pass: the prefix length through which it decodes, and the estimated sum of
+    /// squared errors after it.
+    pub passes: Vec<(u64, f64)>,
+}
+
+impl TileEntry {
+    /// The tile's rate–distortion points: the head, each pass, and the whole stream
+    /// (error 0 when the file is lossless, else that of the last pass).
+    pub fn points(&self, lossless: bool) -> Vec<(u64, f64)> {
+        let mut points = vec![(self.head_len, self.initial_error)];
+        points.extend(self.passes.iter().copied());
+        let last = points.last().expect("the head").1;
+        points.push((self.len, if lossless { 0.0 } else { last }));
+        points
+    }
+}
+
+/// Serialises the index (before framing): per tile, varints `len`, `head_len`, the
+/// initial error (u16, the ladder's log scale), a varint pass count, then per pass the
+/// varint growth of its end over the previous one (the first over `head_len`) and its
+/// error (u16).
+pub fn write_index(entries: &[TileEntry]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(entries.len() * 64);
+    for entry in entries {
+        write_varint(&mut out, entry.len);
+        write_varint(&mut out, entry.head_len);
+        out.extend_from_slice(&error_to_u16(entry.initial_error).to_le_bytes());
+        write_varint(&mut out, entry.passes.len() as u64);
+        let mut previous = entry.head_len;
+        for &(end, error) in &entry.passes {
+            write_varint(&mut out, end - previous);
+            out.extend_from_slice(&error_to_u16(error).to_le_bytes());
+            previous = end;
+        }
+    }
+    out
+}
+
+/// Parses an index of `count` entries; every offset must lie inside its tile.
+pub fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, CodecError> {
+    let bad = |what: &str| CodecError::InvalidHeader(format!("tile index: {what}"));
+    let mut r = Reader {
+        data: bytes,
+        pos: 0,
+    };
+    let mut entries = Vec::with_capacity(count.min(bytes.len() / 5));
+    for _ in 0..count {
+        let field = |r: &mut Reader| r.varint().map_err(|_| bad("ends early"));
+        let len = field(&mut r)?;
+        let head_len = field(&mut r)?;
+        let initial_error = error_from_u16(r.u16().map_err(|_| bad("ends early"))?);
+        let pass_count = field(&mut r)?;
+        if head_len > len || pass_count > 64 {
+            return Err(bad("a tile's head or pass count"));
+        }
+        let mut passes = Vec::with_capacity(pass_count as usize);
+        let mut end = head_len;
+        for _ in 0..pass_count {
+            end = end
+                .checked_add(field(&mut r)?)
+                .filter(|&e| e <= len)
+                .ok_or_else(|| bad("a pass ends past its tile"))?;
+            passes.push((end, error_from_u16(r.u16().map_err(|_| bad("ends early"))?)));
+        }
+        entries.push(TileEntry {
+            len,
+            head_len,
+            initial_error,
+            passes,
+        });
+    }
+    if r.pos != bytes.len() {
+        return Err(bad("trailing bytes"));
+    }
+    Ok(entries)
+}
+
+/// A tiled file's header and index, read from the start of a file: all a reader needs to
+/// plan which bytes to fetch.
+#[derive(Debug, Clone)]
+pub struct TiledLayout {
+    /// The file's header (describing the whole raster).
+    pub header: Header,
+    /// Bytes of the header.
+    pub header_len: u64,
+    /// The tiles.
+    pub grid: TileGrid,
+    /// One entry per tile, row-major.
+    pub entries: Vec<TileEntry>,
+    /// File offset of each tile's stream.
+    pub offsets: Vec<u64>,
+}
+
+impl TiledLayout {
+    /// Reads the header and, for a tiled file, the index: `Ok(None)` for a single
+    /// stream. Refuses an index larger than `max_index_bytes`.
+    pub fn read(
+        source: &mut impl ByteSource,
+        max_index_bytes: u64,
+    ) -> Result<Option<TiledLayout>, CodecError> {
+        let (header, header_len) = read_header(source)?;
+        let Some(tiling) = header.tiling else {
+            return Ok(None);
+        };
+        let grid = TileGrid {
+            width: header.width as usize,
+            height: header.height as usize,
+            tile_width: tiling.tile_width as usize,
+            tile_height: tiling.tile_height as usize,
+        };
+        let count = grid.count();
+        // Every entry takes at least 5 bytes; a forged count cannot allocate beyond that.
+        let least = (count as u64).saturating_mul(5);
+        if logical_len(tiling.index_len).is_none_or(|len| len < least) {
+            return Err(CodecError::InvalidHeader(format!(
+                "a tile index of {} bytes for {count} tiles",
+                tiling.index_len
+            )));
+        }
+        if tiling.index_len > max_index_bytes {
+            return Err(CodecError::LimitExceeded {
+                what: "tile index bytes",
+                needed: tiling.index_len,
+                limit: max_index_bytes,
+            });
+        }
+        let framed = source
+            .read_at(header_len as u64, tiling.index_len as usize)
+            .map_err(read_error)?;
+        let index = unframe(&framed, tiling.index_len as usize);
+        if let Some(at) = index.damaged_at {
+            return Err(CodecError::Damaged {
+                section: "tile index",
+                offset: header_len as u64 + at as u64,
+            });
+        }
+        if !index.complete {
+            return Err(CodecError::TruncatedHeader(
+                "file ends inside the tile index",
+            ));
+        }
+        let entries = parse_index(&index.bytes, count)?;
+        let mut offsets = Vec::with_capacity(count);
+        let mut offset = header_len as u64 + tiling.index_len;
+        for entry in &entries {
+            offsets.push(offset);
+            offset = offset
+                .checked_add(entry.len)
+                .filter(|&end| end <= crate::container::MAX_FILE_LEN)
+                .ok_or_else(|| {
+                    CodecError::InvalidHeader("tile lengths run past any file".into())
+                })?;
+        }
+        Ok(Some(TiledLayout {
+            header,
+            header_len: header_len as u64,
+            grid,
+            entries,
+            offsets,
+        }))
+    }
+
+    /// Length of the file the header and index describe.
+    pub fn file_len(&self) -> u64 {
+        self.offsets.last().map_or(0, |&o| o) + self.entries.last().map_or(0, |e| e.len)
+    }
+
+    /// Bytes before the first tile: header and index.
+    pub fn head_len(&self) -> u64 {
+        self.offsets
+            .first()
+            .copied()
+            .unwrap_or_else(|| self.file_len())
+    }
+}
+
+/// Reads and parses the header at the start of `source`, fetching more when it is longer
+/// than a first 64 KiB read.
+pub fn read_header(source: &mut impl ByteSource) -> Result<(Header, usize), CodecError> {
+    let first = source.read_at(0, 1 << 16).map_err(read_error)?;
+    match Header::declared_len(&first) {
+        Some(len) if len > first.len() && len <= MAX_HEADER_LEN => {
+            let whole = source.read_at(0, len).map_err(read_error)?;
+            Header::parse(&whole)
+        }
+        _ => Header::parse(&first),
+    }
+}
+
+fn read_error(error: io::Error) -> CodecError {
+    CodecError::Read(error.to_string())
+}

@@ -1,0 +1,421 @@
+//! Tiled files: a raster cut into tiles, each an independent embedded stream, listed by
+//! an index right after the header. A reader plans every byte range it needs from the
+//! header and index alone: a window decode fetches only the tiles it touches, and a
+//! decode at a bit rate only a prefix of each tile, chosen by [`allocate`] so every tile
+//! stops at the same rate–distortion slope. Tiles are coded in parallel; the bytes do not
+//! depend on the number of threads.
+
+mod allocate;
+mod index;
+mod stream;
+mod verify;
+mod workers;
+
+use std::io;
+
+pub use allocate::allocate;
+pub use index::{read_header, TileEntry, TiledLayout};
+pub use stream::{cut_tile, encode_tile, EncodedTile, TileSummary};
+
+use crate::container::{frame, Header, Mode, Tiling};
+use crate::error::CodecError;
+use crate::pipeline::{DecodeOptions, Decoded, EncodeOptions, Encoded};
+use crate::raster::{Georef, Metadata, Raster, SampleType};
+pub(crate) use verify::verify_tiled;
+use workers::Workers;
+
+/// Largest tile side the encoder uses unless told otherwise: rasters with no side longer
+/// than this stay a single stream.
+pub const DEFAULT_TILE: u32 = 1024;
+
+/// A rectangle of samples: its top-left corner and size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x: usize,
+    /// First row.
+    pub y: usize,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+}
+
+impl Window {
+    /// The part of this window inside `other`, if any.
+    pub fn intersection(&self, other: &Window) -> Option<Window> {
+        let x = self.x.max(other.x);
+        let y = self.y.max(other.y);
+        let right = (self.x + self.width).min(other.x + other.width);
+        let bottom = (self.y + self.height).min(other.y + other.height);
+        (right > x && bottom > y).then_some(Window {
+            x,
+            y,
+            width: right - x,
+            height: bottom - y,
+        })
+    }
+}
+
+/// How a raster is cut into tiles: `tile_width × tile_height` from the top-left corner,
+/// row-major, the last column and row of tiles narrower where the raster ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TileGrid {
+    /// Raster columns.
+    pub width: usize,
+    /// Raster rows.
+    pub height: usize,
+    /// Columns of a tile.
+    pub tile_width: usize,
+    /// Rows of a tile.
+    pub tile_height: usize,
+}
+
+impl TileGrid {
+    /// Tiles no larger than `max_tile` a side and as equal as the raster allows (a
+    /// 1201-sample side with `max_tile` 1024 gets two tiles of 601 and 600, not 1024 and
+    /// 177); `None` when one tile covers the raster.
+    pub fn balanced(width: usize, height: usize, max_tile: usize) -> Option<TileGrid> {
+        let max_tile = max_tile.max(1);
+        if width <= max_tile && height <= max_tile {
+            return None;
+        }
+        let side = |len: usize| len.div_ceil(len.div_ceil(max_tile));
+        Some(TileGrid {
+            width,
+            height,
+            tile_width: side(width),
+            tile_height: side(height),
+        })
+    }
+
+    /// Tiles across.
+    pub fn columns(&self) -> usize {
+        self.width.div_ceil(self.tile_width)
+    }
+
+    /// Tiles down.
+    pub fn rows(&self) -> usize {
+        self.height.div_ceil(self.tile_height)
+    }
+
+    /// Number of tiles.
+    pub fn count(&self) -> usize {
+        self.columns().saturating_mul(self.rows())
+    }
+
+    /// The samples of tile `index`.
+    pub fn tile(&self, index: usize) -> Window {
+        let (x, y) = (
+            index % self.columns() * self.tile_width,
+            index / self.columns() * self.tile_height,
+        );
+        Window {
+            x,
+            y,
+            width: self.tile_width.min(self.width - x),
+            height: self.tile_height.min(self.height - y),
+        }
+    }
+
+    /// The tiles of row `row`, by index.
+    pub fn row(&self, row: usize) -> std::ops::Range<usize> {
+        row * self.columns()..(row + 1) * self.columns()
+    }
+}
+
+/// Random access to the bytes of a file: a slice in memory, a file on disk, or a remote
+/// object read by HTTP range requests.
+pub trait ByteSource {
+    /// Up to `len` bytes from `offset` (fewer, or none, where the data ends: a truncated
+    /// file is not an error).
+    fn read_at(&mut self, offset: u64, len: usize) -> io::Result<Vec<u8>>;
+}
+
+impl ByteSource for &[u8] {
+    fn read_at(&mut self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
+        let start = usize::try_from(offset)
+            .unwrap_or(usize::MAX)
+            .min(self.len());
+        let end = start.saturating_add(len).min(self.len());
+        Ok(self[start..end].to_vec())
+    }
+}
+
+/// What a tiled file's header says about the whole raster.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RasterInfo {
+    /// Raster columns.
+    pub width: usize,
+    /// Raster rows.
+    pub height: usize,
+    /// Sample type.
+    pub sample_type: SampleType,
+    /// Nodata value, if any.
+    pub nodata: Option<f64>,
+    /// Georeferencing.
+    pub georef: Option<Georef>,
+    /// GIS metadata.
+    pub metadata: Metadata,
+}
+
+impl RasterInfo {
+    /// The description of `raster` (its samples aside).
+    pub fn of(raster: &Raster) -> RasterInfo {
+        RasterInfo {
+            width: raster.width,
+            height: raster.height,
+            sample_type: raster.sample_type(),
+            nodata: raster.nodata,
+            georef: raster.georef.clone(),
+            metadata: raster.metadata.clone(),
+        }
+    }
+}
+
+/// The start of a tiled file: its header and the framed index of `tiles` (in grid
+/// order). The tiles' streams follow, in the same order.
+pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> Vec<u8> {
+    let entries: Vec<TileEntry> = tiles.iter().map(|t| t.entry.clone()).collect();
+    let index = frame(&index::write_index(&entries));
+    let first = tiles.first().expect("a grid has tiles");
+    let mut header = Header::whole_raster(
+        info.width as u32,
+        info.height as u32,
+        info.sample_type,
+        first.wavelet,
+        first.levels,
+        weakest_mode(tiles),
+    );
+    header.max_error = tiles.iter().map(|t| t.max_error).fold(0.0, f64::max);
+    header.valid_range = tiles
+        .iter()
+        .filter_map(|t| t.valid_range)
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+        .unwrap_or((0.0, 0.0));
+    header.nodata = info.nodata;
+    header.georef = info.georef.clone();
+    header.metadata = info.metadata.clone();
+    header.tiling = Some(Tiling {
+        tile_width: grid.tile_width as u32,
+        tile_height: grid.tile_height as u32,
+        index_len: index.len() as u64,
+    });
+    let mut out = header.to_bytes();
+    out.extend_from_slice(&index);
+    out
+}
+
+/// The guarantee all tiles share: lossless only if every tile is, and so on.
+fn weakest_mode(tiles: &[TileSummary]) -> Mode {
+    let rank = |m: Mode| match m {
+        Mode::Lossless => 0,
+        Mode::Precision => 1,
+        Mode::MaxError => 2,
+        Mode::Lossy => 3,
+    };
+    tiles
+        .iter()
+        .map(|t| t.mode)
+        .max_by_key(|&m| rank(m))
+        .unwrap_or(Mode::Lossless)
+}
+
+/// Encodes `raster` as a tiled file on `grid` (see [`crate::encode`], which calls this
+/// for rasters larger than a tile). With a byte budget every tile is coded completely,
+/// then cut where [`allocate`] says.
+pub(crate) fn encode(
+    raster: &Raster,
+    options: &EncodeOptions,
+    grid: &TileGrid,
+) -> Result<Encoded, CodecError> {
+    let workers = Workers::new(options.threads)?;
+    let samples = raster.len() as u64;
+    let mut tiles: Vec<EncodedTile> = Vec::with_capacity(grid.count());
+    for row in 0..grid.rows() {
+        let done = workers.map(grid.row(row), |k| {
+            let window = grid.tile(k);
+            let part = raster.crop(window.x, window.y, window.width, window.height);
+            encode_tile(
+                &part,
+                options,
+                tile_cap(options.budget_bytes, &window, samples),
+            )
+        });
+        for tile in done {
+            tiles.push(tile?);
+        }
+        let coded: u64 = grid.row(0).len() as u64 * (row as u64 + 1);
+        crate::progress::report(
+            crate::progress::Stage::Tiles,
+            samples * coded / grid.count() as u64,
+            samples,
+        );
+    }
+    if let Some(budget) = options.budget_bytes {
+        tiles = cut_to_budget(tiles, &RasterInfo::of(raster), grid, budget)?;
+    }
+    let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
+    let mut bytes = tiled_head(&RasterInfo::of(raster), grid, &summaries);
+    let header_len = Header::declared_len(&bytes).expect("a header we wrote");
+    for tile in &tiles {
+        bytes.extend_from_slice(&tile.bytes);
+    }
+    let (header, _) = Header::parse(&bytes)?;
+    Ok(Encoded {
+        bytes,
+        header,
+        header_len,
+        initial_error: summaries.iter().map(|t| t.entry.initial_error).sum(),
+    })
+}
+
+/// Bytes a tile is coded to under a file budget: four times its share by area (and
+/// 4 KiB), so no tile spends time on planes the allocation would never give it bytes
+/// for, and a tile four times more detailed than the average still gets what it needs.
+fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
+    let share = budget? as f64 * (tile.width * tile.height) as f64 / samples as f64;
+    Some((4.0 * share) as u64 + 4096)
+}
+
+/// Cuts tiles so the whole file fits `budget` bytes. The index shrinks with the
+/// cut (fewer passes to list), so the header and index are first counted without
+/// passes, then the excess of each try, if any, is taken off the tiles' share.
+fn cut_to_budget(
+    tiles: Vec<EncodedTile>,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    budget: u64,
+) -> Result<Vec<EncodedTile>, CodecError> {
+    let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
+    let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
+    let lossless = weakest_mode(&summaries) == Mode::Lossless;
+    let bare: Vec<TileSummary> = summaries
+        .iter()
+        .map(|t| {
+            let mut t = t.clone();
+            t.entry.passes.clear();
+            t
+        })
+        .collect();
+    let mut reserve = tiled_head(info, grid, &bare).len() as u64;
+    let least = reserve + entries.iter().map(|e| e.head_len).sum::<u64>();
+    let too_small = || {
+        CodecError::InvalidParameters(format!(
+            "a budget of {budget} bytes is smaller than the headers, index and nodata masks ({least} bytes)"
+        ))
+    };
+    for _ in 0..8 {
+        let lengths = budget
+            .checked_sub(reserve)
+            .and_then(|left| allocate(&entries, lossless, left))
+            .ok_or_else(too_small)?;
+        let cut = tiles
+            .iter()
+            .zip(lengths)
+            .map(|(tile, len)| cut_tile(&tile.bytes, &tile.summary, len))
+            .collect::<Result<Vec<EncodedTile>, CodecError>>()?;
+        let cut_summaries: Vec<TileSummary> = cut.iter().map(|t| t.summary.clone()).collect();
+        let total = tiled_head(info, grid, &cut_summaries).len() as u64
+            + cut.iter().map(|t| t.bytes.len() as u64).sum::<u64>();
+        if total <= budget {
+            return Ok(cut);
+        }
+        reserve += total - budget;
+    }
+    Err(too_small())
+}
+
+/// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
+/// it needs: the header and index, then for each tile the window touches the prefix
+/// [`allocate`] gives it under `options.max_bytes` (all of it without a budget).
+pub fn decode_layout(
+    source: &mut impl ByteSource,
+    layout: &TiledLayout,
+    window: Option<Window>,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    let header = &layout.header;
+    let whole = Window {
+        x: 0,
+        y: 0,
+        width: layout.grid.width,
+        height: layout.grid.height,
+    };
+    let window = match window {
+        None => whole,
+        Some(w) => w.intersection(&whole).filter(|i| *i == w).ok_or_else(|| {
+            CodecError::InvalidParameters(format!(
+                "window {}x{} at ({}, {}) is not inside the {}x{} raster",
+                w.width, w.height, w.x, w.y, whole.width, whole.height
+            ))
+        })?,
+    };
+    let workers = Workers::new(options.threads)?;
+    check_memory(layout, &window, options, workers.count())?;
+    let lengths = tile_lengths(layout, options.max_bytes)?;
+    let mut output = decode::Output::new(header, window);
+    for row in 0..layout.grid.rows() {
+        let wanted: Vec<usize> = layout
+            .grid
+            .row(row)
+            .filter(|&k| layout.grid.tile(k).intersection(&window).is_some())
+            .collect();
+        let mut fetched = Vec::with_capacity(wanted.len());
+        for &k in &wanted {
+            let bytes = source
+                .read_at(layout.offsets[k], lengths[k] as usize)
+                .map_err(|e| CodecError::Read(e.to_string()))?;
+            fetched.push((k, bytes));
+        }
+        let decoded = workers.map(0..fetched.len(), |i| decode::tile(&fetched[i].1, options));
+        for ((k, bytes), result) in fetched.iter().zip(decoded) {
+            output.place(*k, layout, bytes.len() as u64, result, options.strict)?;
+        }
+    }
+    Ok(output.finish(layout))
+}
+
+mod decode;
+
+/// Bytes of each tile a decode reads: all of them, or the budget's allocation.
+fn tile_lengths(layout: &TiledLayout, max_bytes: Option<u64>) -> Result<Vec<u64>, CodecError> {
+    let full: Vec<u64> = layout.entries.iter().map(|e| e.len).collect();
+    let Some(budget) = max_bytes.filter(|&b| b < layout.file_len()) else {
+        return Ok(full);
+    };
+    let lossless = layout.header.mode == Mode::Lossless;
+    budget
+        .checked_sub(layout.head_len())
+        .and_then(|left| allocate(&layout.entries, lossless, left))
+        .ok_or(CodecError::TruncatedHeader(
+            "the byte budget ends before the tiles' headers and masks",
+        ))
+}
+
+/// Refuses a decode whose output and tiles in flight would pass the memory limit.
+fn check_memory(
+    layout: &TiledLayout,
+    window: &Window,
+    options: &DecodeOptions,
+    threads: usize,
+) -> Result<(), CodecError> {
+    let samples = (window.width * window.height) as u64;
+    if samples > options.limits.max_samples {
+        return Err(CodecError::LimitExceeded {
+            what: "sample count",
+            needed: samples,
+            limit: options.limits.max_samples,
+        });
+    }
+    let tile = (layout.grid.tile_width * layout.grid.tile_height) as u64;
+    let needed = samples * layout.header.sample_type.bytes() as u64 + threads as u64 * tile * 10;
+    if needed > options.limits.max_memory {
+        return Err(CodecError::LimitExceeded {
+            what: "decoder memory",
+            needed,
+            limit: options.limits.max_memory,
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,162 @@
+//! One tile's stream: encoded like any single-stream file, then laid out without its
+//! ladder (the index carries it) and, under a byte budget, cut.
+
+use super::index::TileEntry;
+use crate::container::{assemble, assembled_len, physical_offset, unframe, Header, Mode, CHUNK};
+use crate::error::CodecError;
+use crate::pipeline::{EncodeOptions, Encoded};
+use crate::raster::Raster;
+use crate::wavelet::{self, Wavelet};
+
+/// What the tiled file's header and index need to know of a tile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileSummary {
+    /// The tile's index entry.
+    pub entry: TileEntry,
+    /// Its coding mode.
+    pub mode: Mode,
+    /// Its error bound.
+    pub max_error: f64,
+    /// Minimum and maximum valid sample; `None` when the tile is all nodata.
+    pub valid_range: Option<(f64, f64)>,
+    /// Its transform.
+    pub wavelet: Wavelet,
+    /// Its decomposition levels.
+    pub levels: u8,
+}
+
+/// A tile's stream as it goes into the file.
+#[derive(Debug, Clone)]
+pub struct EncodedTile {
+    /// The stream (a single-stream `.ezw` file without ladder).
+    pub bytes: Vec<u8>,
+    /// What the index and header need.
+    pub summary: TileSummary,
+}
+
+/// Encodes one tile (a raster cut from the whole, without georeferencing) as `options`
+/// say, ignoring their tile size, byte budget and threads: completely, or up to `cap`
+/// bytes.
+pub fn encode_tile(
+    part: &Raster,
+    options: &EncodeOptions,
+    cap: Option<u64>,
+) -> Result<EncodedTile, CodecError> {
+    let single = EncodeOptions {
+        tile_size: None,
+        budget_bytes: cap,
+        threads: 1,
+        levels: options
+            .levels
+            .map(|l| l.min(wavelet::max_levels(part.width, part.height))),
+        ..options.clone()
+    };
+    let encoded = crate::progress::observe(|_| {}, || crate::pipeline::encode(part, &single))?;
+    let any_valid = (0..part.len()).any(|i| part.is_valid(i));
+    let passes = encoded
+        .header
+        .passes
+        .iter()
+        .map(|p| (p.end_byte, p.squared_error))
+        .collect();
+    lay_out(&encoded, any_valid, passes, None)
+}
+
+/// `tile` cut to at most `len` bytes: a shorter prefix of its payload, decoded as a
+/// truncated stream (the residual section goes, and with it any error guarantee).
+pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedTile, CodecError> {
+    if len >= tile.len() as u64 {
+        return Ok(EncodedTile {
+            bytes: tile.to_vec(),
+            summary: summary.clone(),
+        });
+    }
+    let (header, header_len) = Header::parse(tile)?;
+    let encoded = Encoded {
+        bytes: tile.to_vec(),
+        header,
+        header_len,
+        initial_error: summary.entry.initial_error,
+    };
+    // The ladder left the stream when it was first laid out: the index has the passes.
+    let passes = summary
+        .entry
+        .passes
+        .iter()
+        .map(|&(end, error)| (logical_offset(end - summary.entry.head_len), error))
+        .collect();
+    lay_out(&encoded, summary.valid_range.is_some(), passes, Some(len))
+}
+
+/// Data byte of a framed section at file offset `physical` within it (the inverse of
+/// [`physical_offset`]).
+fn logical_offset(physical: u64) -> u64 {
+    physical - 4 * (physical / (CHUNK as u64 + 4))
+}
+
+/// Re-lays `encoded` out without its ladder, its payload cut to fit `cut` bytes when
+/// given, and builds its summary; `passes` are its passes' payload ends and errors.
+fn lay_out(
+    encoded: &Encoded,
+    any_valid: bool,
+    passes: Vec<(u64, f64)>,
+    cut: Option<u64>,
+) -> Result<EncodedTile, CodecError> {
+    let file = &encoded.bytes;
+    let mut header = encoded.header.clone();
+    let section = |start: usize, len: usize| unframe(file.get(start..).unwrap_or(&[]), len).bytes;
+    let mask_start = encoded.header_len;
+    let payload_start = mask_start + header.mask_len as usize;
+    let residual_start = payload_start + header.payload_len as usize;
+    let mask = section(mask_start, header.mask_len as usize);
+    let mut payload = section(payload_start, header.payload_len as usize);
+    let mut residual = section(residual_start, header.residual_len as usize);
+    header.passes.clear();
+    if let Some(limit) = cut {
+        header.payload_truncated = true;
+        header.correction_step = 0.0;
+        header.mode = Mode::Lossy;
+        header.max_error = f64::INFINITY;
+        residual.clear();
+        // The cut header may be a byte or two longer than the whole one: a limit below
+        // it keeps no payload (the caller's total check sees the excess).
+        let fits = |p: usize| assembled_len(&header, mask.len(), p, 0) as u64 <= limit;
+        payload.truncate(largest(payload.len(), fits));
+    }
+    let (bytes, header_len) = assemble(&mut header, &mask, &payload, &residual);
+    let head_len = (header_len + header.mask_len as usize) as u64;
+    let passes = passes
+        .into_iter()
+        .filter(|&(end, _)| end <= payload.len() as u64)
+        .map(|(end, error)| (head_len + physical_offset(end), error))
+        .collect();
+    let summary = TileSummary {
+        entry: TileEntry {
+            len: bytes.len() as u64,
+            head_len,
+            initial_error: encoded.initial_error,
+            passes,
+        },
+        mode: header.mode,
+        max_error: header.max_error,
+        valid_range: any_valid.then_some(header.valid_range),
+        wavelet: header.wavelet,
+        levels: header.levels,
+    };
+    Ok(EncodedTile { bytes, summary })
+}
+
+/// The largest `p ≤ max` with `fits(p)` (`fits` holds up to some point, then not); 0
+/// when nothing fits.
+fn largest(max: usize, fits: impl Fn(usize) -> bool) -> usize {
+    let (mut lo, mut hi) = (0, max);
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    lo
+}

@@ -1,0 +1,253 @@
+//! Tiled files: lossless round trips, windows, budgets, threads, truncation and damage.
+
+use std::io;
+
+use wavemesh_codec::tiles::TiledLayout;
+use wavemesh_codec::{
+    decode, decode_window, encode, ByteSource, DecodeOptions, EncodeOptions, Quality, Raster,
+    Samples, Window,
+};
+
+/// A smooth terrain with a ridge and some noise, `width × height` i16.
+fn terrain(width: usize, height: usize) -> Raster {
+    let samples = (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f64, (i / width) as f64);
+            let ridge = 300.0 * (-((x - 0.7 * y - 20.0) / 25.0).powi(2)).exp();
+            let noise = ((i as u64).wrapping_mul(2654435761) % 7) as f64;
+            (500.0 + 2.0 * x - 1.5 * y + ridge + noise) as i16
+        })
+        .collect();
+    Raster::new(width, height, Samples::I16(samples)).unwrap()
+}
+
+fn tiled(tile: u32, quality: Quality, budget: Option<u64>) -> EncodeOptions {
+    EncodeOptions {
+        tile_size: Some(tile),
+        threads: 1,
+        ..EncodeOptions::new(quality, budget)
+    }
+}
+
+fn squared_error(a: &Raster, b: &Raster) -> f64 {
+    (0..a.len())
+        .map(|i| (a.samples.get_f64(i) - b.samples.get_f64(i)).powi(2))
+        .sum()
+}
+
+#[test]
+fn lossless_tiles_round_trip_bit_exactly_whatever_the_threads() {
+    let mut raster = terrain(203, 150);
+    raster.nodata = Some(-32768.0);
+    if let Samples::I16(v) = &mut raster.samples {
+        v[1000..1100].fill(-32768);
+    }
+    let one = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    let two = encode(
+        &raster,
+        &EncodeOptions {
+            threads: 2,
+            ..tiled(64, Quality::Lossless, None)
+        },
+    )
+    .unwrap();
+    assert_eq!(one.bytes, two.bytes, "the bytes depend on the thread count");
+    let tiling = one.header.tiling.expect("a tiled file");
+    // 203 = 4 tiles of 51 (the last 50), 150 = 3 tiles of 50.
+    assert_eq!((tiling.tile_width, tiling.tile_height), (51, 50));
+    let decoded = decode(&one.bytes, &DecodeOptions::default()).unwrap();
+    assert!(decoded.complete);
+    assert_eq!(decoded.raster, raster);
+}
+
+#[test]
+fn float_tiles_with_nan_voids_round_trip() {
+    let base = terrain(130, 70);
+    let values = (0..base.len())
+        .map(|i| {
+            let v = base.samples.get_f64(i) as f32 * 0.37 + 0.001;
+            if (i / 130) % 9 == 0 && i % 130 > 60 {
+                f32::NAN
+            } else {
+                v
+            }
+        })
+        .collect();
+    let raster = Raster::new(130, 70, Samples::F32(values)).unwrap();
+    let encoded = encode(&raster, &tiled(40, Quality::Lossless, None)).unwrap();
+    let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+    for i in 0..raster.len() {
+        let (a, b) = (raster.samples.get_f64(i), decoded.raster.samples.get_f64(i));
+        assert!(
+            a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+            "sample {i}"
+        );
+    }
+}
+
+#[test]
+fn small_rasters_stay_one_stream() {
+    let raster = terrain(64, 64);
+    let encoded = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    assert!(encoded.header.tiling.is_none());
+}
+
+#[test]
+fn a_window_decodes_like_the_same_part_of_the_whole() {
+    let raster = terrain(200, 180);
+    let encoded = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    let whole = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+    let window = Window {
+        x: 50,
+        y: 61,
+        width: 90,
+        height: 40,
+    };
+    for budget in [None, Some(encoded.bytes.len() as u64 / 5)] {
+        let options = DecodeOptions {
+            max_bytes: budget,
+            ..DecodeOptions::default()
+        };
+        let all = decode(&encoded.bytes, &options).unwrap();
+        let part = decode_window(&mut &encoded.bytes[..], Some(window), &options).unwrap();
+        assert_eq!(part.raster.samples, all.raster.crop(50, 61, 90, 40).samples);
+    }
+    assert_eq!(whole.raster, raster);
+}
+
+/// A source that counts the bytes it hands out.
+struct Counting<'a> {
+    data: &'a [u8],
+    read: u64,
+}
+
+impl ByteSource for Counting<'_> {
+    fn read_at(&mut self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
+        let bytes = (&mut self.data).read_at(offset, len)?;
+        self.read += bytes.len() as u64;
+        Ok(bytes)
+    }
+}
+
+#[test]
+fn a_window_reads_only_the_tiles_it_touches() {
+    let raster = terrain(256, 256);
+    let encoded = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    let layout = TiledLayout::read(&mut &encoded.bytes[..], u64::MAX)
+        .unwrap()
+        .unwrap();
+    let mut source = Counting {
+        data: &encoded.bytes,
+        read: 0,
+    };
+    let window = Window {
+        x: 70,
+        y: 10,
+        width: 50,
+        height: 40,
+    };
+    let part = decode_window(&mut source, Some(window), &DecodeOptions::default()).unwrap();
+    assert_eq!(part.raster.samples, raster.crop(70, 10, 50, 40).samples);
+    // The window lies in tile 1 (x 64–127, y 0–63): the header read (up to 64 KiB, the
+    // whole small file), the index, and that tile again.
+    let tile = layout.entries[1].len;
+    assert!(
+        source.read <= encoded.bytes.len() as u64 + layout.head_len() + tile,
+        "read {} bytes",
+        source.read
+    );
+    let mut big = Counting {
+        data: &encoded.bytes,
+        read: 0,
+    };
+    decode_window(&mut big, None, &DecodeOptions::default()).unwrap();
+    assert!(source.read < big.read);
+}
+
+#[test]
+fn budgets_spend_bytes_where_they_buy_the_most() {
+    let raster = terrain(256, 200);
+    let file = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    let mut previous = f64::INFINITY;
+    for fraction in [10, 5, 3, 2] {
+        let budget = file.bytes.len() as u64 / fraction;
+        let options = DecodeOptions {
+            max_bytes: Some(budget),
+            ..DecodeOptions::default()
+        };
+        let decoded = decode(&file.bytes, &options).unwrap();
+        assert!(
+            decoded.bytes_used <= budget,
+            "{} > {budget}",
+            decoded.bytes_used
+        );
+        let error = squared_error(&raster, &decoded.raster);
+        assert!(
+            error <= previous,
+            "more bytes, more error: {error} > {previous}"
+        );
+        previous = error;
+        // An encode cut at the same budget fits it and decodes about as well.
+        let cut = encode(&raster, &tiled(64, Quality::Lossless, Some(budget))).unwrap();
+        assert!(cut.bytes.len() as u64 <= budget);
+        let cut_error = squared_error(
+            &raster,
+            &decode(&cut.bytes, &DecodeOptions::default())
+                .unwrap()
+                .raster,
+        );
+        assert!(cut_error <= 1.5 * error + 1.0, "{cut_error} vs {error}");
+    }
+}
+
+#[test]
+fn a_truncated_file_decodes_the_tiles_it_holds() {
+    let raster = terrain(200, 130);
+    let file = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
+    let layout = TiledLayout::read(&mut &file.bytes[..], u64::MAX)
+        .unwrap()
+        .unwrap();
+    // Cut inside tile 5: tiles 0–4 whole, 5 partly, the rest missing.
+    let cut = (layout.offsets[5] + layout.entries[5].len / 2) as usize;
+    let decoded = decode(&file.bytes[..cut], &DecodeOptions::default()).unwrap();
+    assert!(!decoded.complete);
+    let first = layout.grid.tile(0);
+    assert_eq!(
+        decoded
+            .raster
+            .crop(first.x, first.y, first.width, first.height)
+            .samples,
+        raster
+            .crop(first.x, first.y, first.width, first.height)
+            .samples
+    );
+}
+
+#[test]
+fn a_damaged_tile_is_reported_by_number_and_the_others_decode() {
+    let raster = terrain(200, 130);
+    let mut file = encode(&raster, &tiled(64, Quality::Lossless, None))
+        .unwrap()
+        .bytes;
+    let layout = TiledLayout::read(&mut &file[..], u64::MAX)
+        .unwrap()
+        .unwrap();
+    let at = (layout.offsets[3] + layout.entries[3].head_len + 10) as usize;
+    file[at] ^= 0x40;
+    let decoded = decode(&file, &DecodeOptions::default()).unwrap();
+    let damage = decoded.damage.expect("damage found");
+    assert_eq!(damage.tile, Some(3));
+    for k in [0, 1, 2, 4, 5] {
+        let t = layout.grid.tile(k);
+        assert_eq!(
+            decoded.raster.crop(t.x, t.y, t.width, t.height).samples,
+            raster.crop(t.x, t.y, t.width, t.height).samples,
+            "tile {k}"
+        );
+    }
+    let strict = DecodeOptions {
+        strict: true,
+        ..DecodeOptions::default()
+    };
+    assert!(decode(&file, &strict).is_err());
+}

@@ -1,0 +1,103 @@
+//! A `.ezw` file on disk read by ranges ([`wavemesh_codec::ByteSource`]), counting the
+//! bytes it reads so reports can say how much of a file a window decode touched.
+
+use std::fs::File;
+use std::io::{self, Read, Seek, SeekFrom};
+use std::path::Path;
+
+use wavemesh_codec::ByteSource;
+
+/// A file read by ranges. The first block read from the start of the file is kept, so
+/// the header and index, which every reader of a tiled file looks at first, are read
+/// from disk once.
+#[derive(Debug)]
+pub struct FileSource {
+    file: File,
+    len: u64,
+    bytes_read: u64,
+    head: Vec<u8>,
+}
+
+impl FileSource {
+    /// Opens `path` for reading.
+    pub fn open(path: &Path) -> io::Result<FileSource> {
+        let file = File::open(path)?;
+        let len = file.metadata()?.len();
+        Ok(FileSource {
+            file,
+            len,
+            bytes_read: 0,
+            head: Vec::new(),
+        })
+    }
+
+    /// The file's length in bytes.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Whether the file is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Bytes read so far.
+    pub fn bytes_read(&self) -> u64 {
+        self.bytes_read
+    }
+}
+
+impl ByteSource for FileSource {
+    fn read_at(&mut self, offset: u64, len: usize) -> io::Result<Vec<u8>> {
+        let available = self.len.saturating_sub(offset).min(len as u64);
+        let end = offset + available;
+        // What the kept start of the file holds, then the rest from disk.
+        let kept = self.head.len() as u64;
+        let cached_end = if offset < kept { end.min(kept) } else { offset };
+        let mut out = Vec::with_capacity(available as usize);
+        if offset < kept {
+            out.extend_from_slice(&self.head[offset as usize..cached_end as usize]);
+        }
+        if cached_end < end {
+            self.file.seek(SeekFrom::Start(cached_end))?;
+            let read = (&mut self.file)
+                .take(end - cached_end)
+                .read_to_end(&mut out)?;
+            self.bytes_read += read as u64;
+        }
+        if offset == 0 && self.head.is_empty() && out.len() <= HEAD_KEPT {
+            self.head = out.clone();
+        }
+        Ok(out)
+    }
+}
+
+/// Most bytes of the file's start kept after the first read there.
+const HEAD_KEPT: usize = 1 << 16;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_ranges_and_counts_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.bin");
+        std::fs::write(&path, (0..100u8).collect::<Vec<_>>()).unwrap();
+        let mut source = FileSource::open(&path).unwrap();
+        assert_eq!(source.read_at(10, 3).unwrap(), vec![10, 11, 12]);
+        assert_eq!(source.read_at(98, 10).unwrap(), vec![98, 99]);
+        assert!(source.read_at(200, 10).unwrap().is_empty());
+        assert_eq!(source.bytes_read(), 5);
+        // The start of the file is read once.
+        assert_eq!(source.read_at(0, 50).unwrap().len(), 50);
+        assert_eq!(source.read_at(5, 20).unwrap()[0], 5);
+        assert_eq!(source.bytes_read(), 55);
+        // Past the kept start: only the rest comes from disk.
+        assert_eq!(
+            source.read_at(40, 20).unwrap(),
+            (40..60u8).collect::<Vec<_>>()
+        );
+        assert_eq!(source.bytes_read(), 65);
+    }
+}
