@@ -41,7 +41,7 @@ pub fn raster_of(array: &Bound<'_, PyAny>) -> PyResult<Raster> {
             .getattr("dtype")
             .map_or_else(|_| "unknown".to_string(), |d| d.to_string());
         return Err(PyValueError::new_err(format!(
-            "cannot encode a {dtype} array: expected a 2-D numpy array of uint8, uint16, \
+            "cannot encode {dtype} samples: expected a 2-D numpy array of uint8, uint16, \
              int16, int32 or float32"
         )));
     };

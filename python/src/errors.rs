@@ -17,10 +17,14 @@ pyo3::create_exception!(
      limit) or a raster could not be encoded (samples the coder cannot hold)."
 );
 
-/// A codec error: bad encoder parameters are a `ValueError`, the rest a `CodecError`.
+/// A codec error: bad encoder parameters are a `ValueError`, the rest a `CodecError`
+/// (a limit's message names the keywords that raise it).
 pub fn codec_error(error: RustCodecError) -> PyErr {
     match error {
         RustCodecError::InvalidParameters(_) => PyValueError::new_err(error.to_string()),
+        RustCodecError::LimitExceeded { .. } => CodecError::new_err(format!(
+            "{error}; raise max_samples= or max_memory= if the data is trusted"
+        )),
         other => CodecError::new_err(other.to_string()),
     }
 }

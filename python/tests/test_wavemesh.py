@@ -117,6 +117,31 @@ def test_bad_arguments_and_damaged_data_raise():
         wavemesh.decode(b"this is not an ezw stream")
     with pytest.raises(wavemesh.CodecError):
         wavemesh.encode(np.array([[1.0, np.inf]], np.float32))
+    with pytest.raises(ValueError, match="int64"):
+        wavemesh.encode(np.array([[1, 2], [3, 4]]))
+    with pytest.raises(ValueError, match="empty"):
+        wavemesh.encode(np.zeros((0, 5), np.int16))
+    data = wavemesh.encode(terrain(np.uint8))
+    for call, kwargs in [(wavemesh.decode, dict(nbytes=-1)), (wavemesh.decode, dict(max_memory=-5)),
+                         (wavemesh.mesh, dict(triangles=-3)), (wavemesh.mesh, dict(xy="feet")),
+                         (wavemesh.mesh, dict(triangles=9, mesh_error=1.0)),
+                         (wavemesh.decode, dict(bpp=1.0, nbytes=10))]:
+        with pytest.raises(ValueError):
+            call(data, **kwargs)
+    with pytest.raises(wavemesh.CodecError, match="nothing to mesh"):
+        wavemesh.mesh(wavemesh.encode(np.zeros((1, 9), np.int16)))
+    with pytest.raises(wavemesh.CodecError, match="max_memory"):
+        wavemesh.decode(data, max_memory=10)
+
+
+def test_unaligned_arrays_and_nodata_outside_the_type():
+    raw = np.frombuffer(bytes(1) + terrain(np.int16, (8, 8)).tobytes(), np.int16, offset=1)
+    unaligned = raw.reshape(8, 8)
+    assert not unaligned.flags.aligned
+    assert wavemesh.decode(wavemesh.encode(unaligned)).filled().tobytes() == unaligned.tobytes()
+    dem = terrain(np.uint8)
+    back = wavemesh.decode(wavemesh.encode(dem, nodata=-9999))
+    assert not back.mask.any() and np.array_equal(back.data, dem)
 
 
 def test_encode_file_reads_geotiffs_and_writes_atomically(tmp_path):

@@ -68,6 +68,25 @@ _EPSG_TEXT = re.compile(r"^\s*EPSG:(\d+)\s*$", re.IGNORECASE)
 _WKT_TEXT = re.compile(r"^\s*[A-Z_0-9]+\s*\[", re.IGNORECASE)
 
 
+def _count(name: str, value: Any) -> Optional[int]:
+    """``value`` checked as a non-negative integer (``None`` passes)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def _fill_value_fits(nodata: Optional[float], dtype: np.dtype) -> bool:
+    """Whether ``nodata`` is a value of ``dtype`` (NaN only for floats)."""
+    if nodata is None:
+        return False
+    if np.issubdtype(dtype, np.floating):
+        return True
+    limits = np.iinfo(dtype)
+    return float(nodata).is_integer() and limits.min <= nodata <= limits.max
+
+
 def _bytes_of(data_or_path: Source) -> bytes:
     """The stream's bytes: given directly, or read from a path."""
     if isinstance(data_or_path, (bytes, bytearray, memoryview)):
@@ -162,8 +181,9 @@ def encode(
 
     ``transform`` is an ``Affine`` or a GDAL geotransform (6 numbers); ``crs`` an EPSG
     code, ``"EPSG:n"``, WKT or a CRS object (needs ``transform``). The array may have
-    any strides and either memory order; it is read in place (copied only to fix a
-    non-native byte order).
+    any strides and either memory order: its samples are read once, straight from its
+    memory, into the coder's buffer (no intermediate numpy copy; only a non-native byte
+    order is converted first).
     """
     if np.ma.isMaskedArray(array):
         array, nodata = _fill_masked(array, nodata)
@@ -215,8 +235,8 @@ def encode_file(
         terrain_rgb=terrain_rgb,
         accept_lossy_input=accept_lossy_input,
         no_metadata_items=no_metadata_items,
-        max_samples=max_samples,
-        max_memory=max_memory,
+        max_samples=_count("max_samples", max_samples),
+        max_memory=_count("max_memory", max_memory),
     )
 
 
@@ -243,10 +263,10 @@ def decode(
     samples, valid, nodata, damage = _wavemesh.decode(
         _bytes_of(data_or_path),
         bpp=bpp,
-        nbytes=nbytes,
+        nbytes=_count("nbytes", nbytes),
         strict=strict,
-        max_samples=max_samples,
-        max_memory=max_memory,
+        max_samples=_count("max_samples", max_samples),
+        max_memory=_count("max_memory", max_memory),
     )
     if damage is not None:
         where = "" if isinstance(data_or_path, (bytes, bytearray, memoryview)) else (
@@ -254,7 +274,7 @@ def decode(
         )
         warnings.warn(f"{where}{damage}", RuntimeWarning, stacklevel=2)
     out = np.ma.MaskedArray(samples, mask=~valid)
-    if nodata is not None and (np.issubdtype(samples.dtype, np.floating) or not np.isnan(nodata)):
+    if _fill_value_fits(nodata, samples.dtype):
         out.fill_value = nodata
     return out
 
@@ -279,7 +299,9 @@ def info(
     ``estimated_psnr_db`` of a decode that stops there.
     """
     header = _wavemesh.info(
-        _bytes_of(data_or_path), max_samples=max_samples, max_memory=max_memory
+        _bytes_of(data_or_path),
+        max_samples=_count("max_samples", max_samples),
+        max_memory=_count("max_memory", max_memory),
     )
     if header["geotransform"] is not None:
         header["geotransform"] = tuple(header["geotransform"])
@@ -321,16 +343,16 @@ def mesh(
     return _wavemesh.mesh(
         _bytes_of(data_or_path),
         bpp=bpp,
-        nbytes=nbytes,
-        triangles=triangles,
+        nbytes=_count("nbytes", nbytes),
+        triangles=_count("triangles", triangles),
         mesh_error=mesh_error,
         threshold=threshold,
         search=search,
         rule=rule,
         xy=xy,
         z_scale=z_scale,
-        max_samples=max_samples,
-        max_memory=max_memory,
+        max_samples=_count("max_samples", max_samples),
+        max_memory=_count("max_memory", max_memory),
     )
 
 
@@ -377,9 +399,9 @@ def table(
         bpp=None if bpp is None else [float(r) for r in bpp],
         wavelet=wavelet,
         rule=rule,
-        runs=runs,
-        max_samples=max_samples,
-        max_memory=max_memory,
+        runs=_count("runs", runs),
+        max_samples=_count("max_samples", max_samples),
+        max_memory=_count("max_memory", max_memory),
     )
     if isinstance(dem, (str, os.PathLike)):
         text = _wavemesh.table(path=os.fspath(dem), terrain_rgb=terrain_rgb, **options)
