@@ -23,24 +23,33 @@ fn keys_of_epsg(code: i64) -> PyResult<Vec<u16>> {
     Ok(keys)
 }
 
-/// Places `raster` with a GDAL `geotransform` and a CRS (`epsg` code, else `wkt` text,
-/// which is kept as given and becomes GeoKeys when it names its EPSG code).
+/// The GeoKeys of a CRS, and the WKT to keep beside them: an EPSG code our tables know
+/// becomes keys alone; otherwise the WKT is kept as given (and becomes keys when it names
+/// its EPSG code), so a CRS object whose code is unknown here still travels.
+fn crs_keys(epsg: Option<i64>, wkt: Option<String>) -> PyResult<(Vec<u16>, Option<String>)> {
+    if wkt.as_deref().is_some_and(|text| text.trim().is_empty()) {
+        return Err(PyValueError::new_err("crs is an empty string"));
+    }
+    match (epsg.map(keys_of_epsg), wkt) {
+        (Some(Ok(keys)), _) => Ok((keys, None)),
+        (Some(Err(unknown)), None) => Err(unknown),
+        (Some(Err(_)) | None, Some(text)) => Ok((keys_from_wkt(&text), Some(text))),
+        (None, None) => Ok((Vec::new(), None)),
+    }
+}
+
+/// Places `raster` with a GDAL `geotransform` and a CRS given as an `epsg` code and/or
+/// `wkt` text (see [`crs_keys`]).
 pub fn set_georef(
     raster: &mut Raster,
     geotransform: Option<[f64; 6]>,
     epsg: Option<i64>,
     wkt: Option<String>,
 ) -> PyResult<()> {
-    let keys = match (epsg, &wkt) {
-        (Some(code), _) => keys_of_epsg(code)?,
-        (None, Some(text)) if text.trim().is_empty() => {
-            return Err(PyValueError::new_err("crs is an empty string"))
-        }
-        (None, Some(text)) => keys_from_wkt(text),
-        (None, None) => Vec::new(),
-    };
+    let has_crs = epsg.is_some() || wkt.is_some();
+    let (keys, crs_wkt) = crs_keys(epsg, wkt)?;
     let Some(geotransform) = geotransform else {
-        if epsg.is_some() || wkt.is_some() {
+        if has_crs {
             return Err(PyValueError::new_err(
                 "a CRS without a transform places nothing: give transform= too",
             ));
@@ -52,9 +61,7 @@ pub fn set_georef(
             "transform must hold finite numbers, got {geotransform:?}"
         )));
     }
-    if epsg.is_none() {
-        raster.metadata.crs_wkt = wkt;
-    }
+    raster.metadata.crs_wkt = crs_wkt;
     raster.georef = Some(Georef {
         geotransform,
         geo_key_directory: keys,

@@ -190,6 +190,17 @@ def test_georeferencing_arguments():
     local = 'LOCAL_CS["site grid",UNIT["metre",1]]'
     header = wavemesh.info(wavemesh.encode(dem, transform=gdal, crs=local))
     assert header["crs_epsg"] is None and header["crs_wkt"] == local
+    class NewCrs:
+        """A CRS whose EPSG code is newer than wavemesh's tables."""
+
+        def to_epsg(self):
+            return 99999
+
+        def to_wkt(self):
+            return local
+
+    header = wavemesh.info(wavemesh.encode(dem, transform=gdal, crs=NewCrs()))
+    assert header["crs_epsg"] is None and header["crs_wkt"] == local
     bare = wavemesh.info(wavemesh.encode(dem))
     assert bare["geotransform"] is None and bare["crs_epsg"] is None
     for bad in [dict(crs=4326), dict(transform=gdal, crs=99999), dict(transform=gdal, crs="x"),

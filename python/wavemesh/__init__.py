@@ -46,6 +46,7 @@ The GIL is released while coding, meshing and measuring.
 
 from __future__ import annotations
 
+import json
 import numbers
 import os
 import re
@@ -114,7 +115,8 @@ def _geotransform(transform: Any) -> Optional[Tuple[float, ...]]:
 
 def _crs(crs: Any) -> Tuple[Optional[int], Optional[str]]:
     """``(epsg, wkt)`` of a CRS given as an EPSG code, ``"EPSG:n"``, WKT, or an object
-    with ``to_epsg()``/``to_wkt()`` (its EPSG code when it has one, else its WKT)."""
+    with ``to_epsg()``/``to_wkt()`` (both: the code is stored when it is known, else the
+    WKT)."""
     if crs is None:
         return None, None
     if isinstance(crs, numbers.Integral) and not isinstance(crs, bool):
@@ -128,10 +130,9 @@ def _crs(crs: Any) -> Tuple[Optional[int], Optional[str]]:
         raise ValueError(f"crs must be an EPSG code, 'EPSG:n' or WKT, got {crs!r}")
     if hasattr(crs, "to_epsg") or hasattr(crs, "to_wkt"):
         code = crs.to_epsg() if hasattr(crs, "to_epsg") else None
-        if code:
-            return int(code), None
-        if hasattr(crs, "to_wkt"):
-            return None, crs.to_wkt()
+        wkt = crs.to_wkt() if hasattr(crs, "to_wkt") else None
+        if code or wkt:
+            return (int(code) if code else None), wkt
     raise ValueError(
         f"crs must be an EPSG code, 'EPSG:n', WKT or a CRS object, got {type(crs).__name__}"
     )
@@ -392,8 +393,6 @@ def table(
     ``mesh_bytes_in_memory``, ``saving_ratio``. ``as_frame=True`` returns a pandas
     ``DataFrame`` of the same rows (pandas must be installed).
     """
-    import json
-
     options = dict(
         thresholds=None if thresholds is None else [float(t) for t in thresholds],
         bpp=None if bpp is None else [float(r) for r in bpp],
