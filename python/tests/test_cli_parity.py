@@ -75,3 +75,14 @@ def test_table_rows_equal_the_cli(cli, tmp_path):
             assert array_row[key] == cli_row[key], key
         assert file_row["mesh_rmse"] == array_row["mesh_rmse"] == cli_row["mesh"]["rmse"]
         assert array_row["ezw_bytes"] < cli_row["ezw_bytes"]
+
+
+@pytest.mark.parametrize("options", [[], ["--bpp", "0.5"], ["--max-error", "2"]])
+def test_encode_file_writes_the_cli_bytes(cli, tmp_path, options):
+    dem = terrain(np.int16, (97, 81))
+    dem[40:45, 10:20] = -32768
+    tif = write_geotiff(tmp_path / "dem.tif", dem, nodata=-32768, transform=GEOGRAPHIC, crs="EPSG:4326")
+    subprocess.run([cli, "encode", tif, "-o", tmp_path / "cli.ezw", *options], check=True, capture_output=True)
+    kwargs = {options[0].lstrip("-").replace("-", "_"): float(options[1])} if options else {}
+    wavemesh.encode_file(tif, tmp_path / "py.ezw", **kwargs)
+    assert (tmp_path / "py.ezw").read_bytes() == (tmp_path / "cli.ezw").read_bytes()

@@ -75,3 +75,9 @@ def test_shared_dems_match_rasterio(tmp_path, name, tif):
     out = tmp_path / f"{name}.ezw"
     wavemesh.encode_file(tif, out)
     check_against_rasterio(tif, out.read_bytes())
+    with rasterio.open(tif) as src:
+        profile = src.profile
+        from_array = wavemesh.encode(
+            src.read(1), nodata=profile["nodata"], transform=profile["transform"], crs=profile["crs"]
+        )
+    check_against_rasterio(tif, from_array)

@@ -203,6 +203,9 @@ def test_georeferencing_arguments():
     assert header["crs_epsg"] is None and header["crs_wkt"] == local
     bare = wavemesh.info(wavemesh.encode(dem))
     assert bare["geotransform"] is None and bare["crs_epsg"] is None
+    identity = wavemesh.encode(dem, transform=Affine.identity())
+    assert wavemesh.info(identity)["geotransform"] is None
+    assert len(identity) == bare["file_bytes"]
     for bad in [dict(crs=4326), dict(transform=gdal, crs=99999), dict(transform=gdal, crs="x"),
                 dict(transform=gdal[:5]), dict(transform=gdal, crs=object())]:
         with pytest.raises(ValueError):

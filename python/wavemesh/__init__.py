@@ -65,6 +65,9 @@ CodecError.__module__ = "wavemesh"
 PathLike = Union[str, "os.PathLike[str]"]
 Source = Union[bytes, bytearray, memoryview, PathLike]
 
+#: GDAL's geotransform of a raster without georeferencing (rasterio's identity
+#: ``Affine``): with no CRS, :func:`encode` stores no georeferencing for it.
+_NOT_GEOREFERENCED = (0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 _EPSG_TEXT = re.compile(r"^\s*EPSG:(\d+)\s*$", re.IGNORECASE)
 _WKT_TEXT = re.compile(r"^\s*[A-Z_0-9]+\s*\[", re.IGNORECASE)
 
@@ -181,7 +184,9 @@ def encode(
     ``numpy.ma`` array's mask (filled with ``nodata``, else NaN or the type's extreme).
 
     ``transform`` is an ``Affine`` or a GDAL geotransform (6 numbers); ``crs`` an EPSG
-    code, ``"EPSG:n"``, WKT or a CRS object (needs ``transform``). The array may have
+    code, ``"EPSG:n"``, WKT or a CRS object (needs ``transform``); the identity
+    transform without a CRS (what rasterio gives for a raster without georeferencing)
+    stores none. The array may have
     any strides and either memory order: its samples are read once, straight from its
     memory, into the coder's buffer (no intermediate numpy copy; only a non-native byte
     order is converted first).
@@ -189,6 +194,9 @@ def encode(
     if np.ma.isMaskedArray(array):
         array, nodata = _fill_masked(array, nodata)
     epsg, wkt = _crs(crs)
+    geotransform = _geotransform(transform)
+    if geotransform == _NOT_GEOREFERENCED and epsg is None and wkt is None:
+        geotransform = None
     return _wavemesh.encode(
         _native_2d(array),
         nodata=None if nodata is None else float(nodata),
@@ -196,7 +204,7 @@ def encode(
         max_error=max_error,
         precision=precision,
         wavelet=wavelet,
-        geotransform=_geotransform(transform),
+        geotransform=geotransform,
         epsg=epsg,
         crs_wkt=wkt,
     )
