@@ -61,6 +61,27 @@ def shared_dem_tifs():
     ]
 
 
+def shared_dem_sources():
+    """`(name, source, tif, terrain_rgb)` for every shared DEM's non-GeoTIFF file (a
+    grayscale PNG, an SRTM .hgt, a Terrain-RGB PNG) beside its GeoTIFF, or one entry
+    that skips when the shared DEMs are absent."""
+    manifest = SHARED_DEMS / "manifest.json"
+    if not manifest.is_file():
+        reason = f"SKIPPED: {SHARED_DEMS} not found (the real DEMs are not beside the repository)"
+        return [pytest.param(None, None, None, None, marks=pytest.mark.skip(reason=reason))]
+    cases = []
+    for d in json.loads(manifest.read_text())["datasets"]:
+        files, tif = d["files"], SHARED_DEMS / d["files"]["tif"]
+        sources = [files["png"]] if files.get("png") else []
+        sources += [f for f in files.get("original", []) if f.endswith(".hgt")]
+        if d["name"].endswith("terrainrgb"):
+            sources += files["original"]
+        for source in sources:
+            terrain_rgb = d["name"].endswith("terrainrgb")
+            cases.append(pytest.param(d["name"], SHARED_DEMS / source, tif, terrain_rgb, id=source))
+    return cases
+
+
 @pytest.fixture
 def cli():
     """The command-line binary `cargo test --release` built, or a visible skip."""

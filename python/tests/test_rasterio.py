@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import rasterio
 from affine import Affine
-from conftest import DTYPES, shared_dem_tifs, terrain, write_geotiff
+from conftest import DTYPES, shared_dem_sources, shared_dem_tifs, terrain, write_geotiff
 
 import wavemesh
 
@@ -81,3 +81,20 @@ def test_shared_dems_match_rasterio(tmp_path, name, tif):
             src.read(1), nodata=profile["nodata"], transform=profile["transform"], crs=profile["crs"]
         )
     check_against_rasterio(tif, from_array)
+
+
+@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
+@pytest.mark.parametrize("name, source, tif, terrain_rgb", shared_dem_sources())
+def test_shared_dems_in_other_formats_match_their_geotiff(tmp_path, name, source, tif, terrain_rgb):
+    """encode_file reads PNG, .hgt and Terrain-RGB as the CLI does: the samples rasterio
+    reads from the same file (Terrain-RGB: from the DEM's GeoTIFF, the decoded heights),
+    and an .hgt places itself as GDAL places it."""
+    out = tmp_path / f"{name}.ezw"
+    wavemesh.encode_file(source, out, terrain_rgb=terrain_rgb)
+    with rasterio.open(tif if terrain_rgb else source) as src:
+        expected = src.read(1)
+    back = wavemesh.decode(out)
+    assert back.dtype == expected.dtype
+    assert back.filled().tobytes() == expected.tobytes()
+    if source.suffix == ".hgt":
+        check_against_rasterio(source, out.read_bytes())
