@@ -228,8 +228,8 @@ pub fn decode_prefix(py: Python<'_>, data: &[u8], request: &DecodeRequest) -> Py
         .map_err(codec_error)
 }
 
-/// What the decoded samples, their validity and the nodata value are, plus the damage
-/// the decode stepped around (the command line's warning), if any.
+/// A decode for Python: the samples, their validity, the nodata value, and the warning
+/// the command line would print about damage the decode stepped around, if any.
 type DecodedArrays<'py> = (
     Bound<'py, PyAny>,
     Bound<'py, PyAny>,
