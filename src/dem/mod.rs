@@ -24,6 +24,10 @@ use wavemesh_codec::{Raster, SampleType, Samples};
 
 use crate::atomic::write_atomic;
 
+/// The CRS as GeoKeys and back: the EPSG code a GeoKey directory names, and the
+/// GeoKeys of a WKT that names its EPSG code (used by the Python package's `crs=`).
+pub use side_files::{epsg_code, keys_from_wkt};
+
 /// Everything that can go wrong reading or writing a DEM file, split by cause.
 #[derive(Debug, thiserror::Error)]
 pub enum DemError {

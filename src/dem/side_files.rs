@@ -17,7 +17,7 @@ use crate::atomic::write_atomic;
 const MAX_PRJ_BYTES: u64 = 1 << 20;
 
 /// The EPSG code of the CRS `georef`'s GeoKeys name (projected first), if any.
-pub(super) fn epsg_code(georef: &Georef) -> Option<u16> {
+pub fn epsg_code(georef: &Georef) -> Option<u16> {
     let dir = &georef.geo_key_directory;
     [geokey::PROJECTED_TYPE, geokey::GEOGRAPHIC_TYPE]
         .into_iter()
@@ -34,20 +34,40 @@ pub(super) fn crs_wkt(raster: &Raster) -> Option<String> {
     crs_definitions::from_code(code).map(|def| def.wkt.to_string())
 }
 
-/// The GeoKey directory of a WKT whose top-level `AUTHORITY["EPSG", code]` names its CRS
-/// (the last AUTHORITY of a WKT 1 text), so a GeoTIFF written from it carries the CRS.
-pub(super) fn keys_from_wkt(wkt: &str) -> Vec<u16> {
+/// The code of the `AUTHORITY["EPSG", code]` that is a direct child of a WKT 1 text's
+/// top-level node; nested ones (of its datum, base CRS or units) do not name the CRS.
+fn top_level_epsg(text: &str) -> Option<u16> {
+    let (mut depth, mut quoted) = (0usize, false);
+    let at = text.char_indices().find_map(|(at, c)| {
+        match c {
+            '"' => quoted = !quoted,
+            '[' if !quoted => depth += 1,
+            ']' if !quoted => depth = depth.saturating_sub(1),
+            ',' if !quoted && depth == 1 => {
+                let next = text[at + 1..].trim_start();
+                if next.starts_with("AUTHORITY[") {
+                    return Some(text.len() - next.len());
+                }
+            }
+            _ => {}
+        }
+        None
+    })?;
+    let rest = &text[at..];
+    let inner = rest[10..rest.find(']')?].replace('"', "");
+    let (authority, code) = inner.split_once(',')?;
+    (authority.trim() == "EPSG").then(|| code.trim().parse::<u16>().ok())?
+}
+
+/// The GeoKey directory of a WKT whose top-level `AUTHORITY["EPSG", code]` names its CRS,
+/// so a GeoTIFF written from it carries the CRS.
+pub fn keys_from_wkt(wkt: &str) -> Vec<u16> {
     let text = wkt.trim();
     let projected = text.starts_with("PROJCS");
     if !(projected || text.starts_with("GEOGCS")) {
         return Vec::new();
     }
-    let code = text.rfind("AUTHORITY[").and_then(|at| {
-        let rest = &text[at..];
-        let inner = rest[10..rest.find(']')?].replace('"', "");
-        let (authority, code) = inner.split_once(',')?;
-        (authority.trim() == "EPSG").then(|| code.trim().parse::<u16>().ok())?
-    });
+    let code = top_level_epsg(text);
     let Some(code) = code.filter(|c| (1024..32767).contains(c)) else {
         return Vec::new();
     };
@@ -156,6 +176,15 @@ mod tests {
         };
         assert_eq!(epsg_code(&georef), Some(32632));
         assert!(keys_from_wkt("PROJCS[\"local\",UNIT[\"m\",1]]").is_empty());
+        // A custom projection on WGS 84: its AUTHORITY nodes name the base CRS and the
+        // unit (EPSG:4326, EPSG:9001), not the CRS.
+        let custom = "PROJCS[\"unknown\",GEOGCS[\"WGS 84\",AUTHORITY[\"EPSG\",\"4326\"]],\
+            PROJECTION[\"Transverse_Mercator\"],UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]]]";
+        assert!(keys_from_wkt(custom).is_empty());
+        assert_eq!(
+            keys_from_wkt("GEOGCS[\"x\", AUTHORITY[\"EPSG\",\"4326\"]]")[15],
+            4326
+        );
     }
 
     #[test]

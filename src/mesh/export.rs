@@ -387,6 +387,18 @@ pub fn write_mesh(
     Ok(())
 }
 
+/// The mesh as the files hold it, for callers that want arrays instead of a file (the
+/// Python package): every vertex's `[x, y, z]` flattened and every triangle's vertex
+/// indices, counter-clockwise seen from +z in `placement`'s frame.
+pub fn placed_mesh(
+    mesh: &GridMesh,
+    heights: &[f64],
+    placement: &Placement,
+) -> Result<(Vec<f64>, Vec<[u32; 3]>), ExportError> {
+    let positions = positions(mesh, heights, placement, "array")?;
+    Ok((positions, oriented_triangles(mesh, placement, "array")?))
+}
+
 /// Terrain-frame positions of every vertex, `[x, y, z]` flattened (`format` names the
 /// output in errors).
 fn positions(
