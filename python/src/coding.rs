@@ -10,7 +10,7 @@ use wavemesh::dem::{read_dem, ReadOptions, WorkMemory};
 use wavemesh_codec::container::{physical_offset, unframe};
 use wavemesh_codec::mask::decode_mask;
 use wavemesh_codec::{
-    decode as decode_stream, encode as encode_raster, DecodeOptions, Decoded, EncodeOptions,
+    decode_window, encode as encode_raster, tiles::{TiledLayout, DEFAULT_TILE}, DecodeOptions, Decoded, EncodeOptions, Window,
     Header, Limits, Quality, Raster, Wavelet,
 };
 
@@ -101,7 +101,7 @@ pub fn raster_with(
 /// Encodes a 2-D array into `.ezw` bytes.
 #[pyfunction]
 #[pyo3(signature = (array, *, nodata=None, bpp=None, max_error=None, precision=None,
-    wavelet=None, geotransform=None, epsg=None, crs_wkt=None))]
+    wavelet=None, geotransform=None, epsg=None, crs_wkt=None, tile=DEFAULT_TILE, threads=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -114,13 +114,26 @@ pub fn encode<'py>(
     geotransform: Option<[f64; 6]>,
     epsg: Option<i64>,
     crs_wkt: Option<String>,
+    tile: u32,
+    threads: usize,
 ) -> PyResult<Bound<'py, PyBytes>> {
     let raster = raster_with(array, nodata, geotransform, epsg, crs_wkt)?;
     let options = encode_options(raster.len() as u64, bpp, max_error, precision, wavelet)?;
+    let options = tiled(options, tile, threads);
     let encoded = py
         .detach(|| encode_raster(&raster, &options))
         .map_err(codec_error)?;
     Ok(PyBytes::new(py, &encoded.bytes))
+}
+
+/// `options` with the largest tile side `tile` (0: one stream whatever the size) and
+/// `threads` threads coding tiles (0: one per core), as `--tile` and `--threads` say.
+fn tiled(options: EncodeOptions, tile: u32, threads: usize) -> EncodeOptions {
+    EncodeOptions {
+        tile_size: (tile > 0).then_some(tile),
+        threads,
+        ..options
+    }
 }
 
 /// How the command line reads a DEM file to encode it.
@@ -145,7 +158,7 @@ pub fn read_options(
 #[pyfunction]
 #[pyo3(signature = (path_in, path_out, *, bpp=None, max_error=None, precision=None,
     wavelet=None, terrain_rgb=false, accept_lossy_input=false, no_metadata_items=false,
-    max_samples=None, max_memory=None))]
+    max_samples=None, max_memory=None, tile=DEFAULT_TILE, threads=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode_file(
     py: Python<'_>,
@@ -160,6 +173,8 @@ pub fn encode_file(
     no_metadata_items: bool,
     max_samples: Option<u64>,
     max_memory: Option<u64>,
+    tile: u32,
+    threads: usize,
 ) -> PyResult<u64> {
     if let (Ok(a), Ok(b)) = (path_in.canonicalize(), path_out.canonicalize()) {
         if a == b {
@@ -175,6 +190,7 @@ pub fn encode_file(
         raster.metadata.items.clear();
     }
     let options = encode_options(raster.len() as u64, bpp, max_error, precision, wavelet)?;
+    let options = tiled(options, tile, threads);
     let encoded = py
         .detach(|| encode_raster(&raster, &options))
         .map_err(codec_error)?;
@@ -207,6 +223,10 @@ pub struct DecodeRequest {
     pub limits: Limits,
     /// Also return the significance map (for meshing).
     pub significance_map: bool,
+    /// Decode only this window (column, row, width, height).
+    pub window: Option<Window>,
+    /// Threads decoding tiles (0: one per core).
+    pub threads: usize,
 }
 
 /// Decodes `data` as `request` says, without the GIL.
@@ -222,9 +242,10 @@ pub fn decode_prefix(py: Python<'_>, data: &[u8], request: &DecodeRequest) -> Py
         limits: request.limits,
         strict: request.strict,
         significance_map: request.significance_map,
+        threads: request.threads,
         ..DecodeOptions::default()
     };
-    py.detach(|| decode_stream(data, &options))
+    py.detach(|| decode_window(&mut &data[..], request.window, &options))
         .map_err(codec_error)
 }
 
@@ -237,10 +258,21 @@ type DecodedArrays<'py> = (
     Option<String>,
 );
 
+/// A tiled file's grid: tile size, count and index bytes.
+fn tiling_dict<'py>(py: Python<'py>, layout: &TiledLayout) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("tile_width", layout.grid.tile_width)?;
+    out.set_item("tile_height", layout.grid.tile_height)?;
+    out.set_item("count", layout.grid.count())?;
+    out.set_item("index_bytes", layout.head_len() - layout.header_len)?;
+    Ok(out)
+}
+
 /// Decodes `.ezw` bytes: `(samples, valid, nodata, damage)`.
 #[pyfunction]
 #[pyo3(signature = (data, *, bpp=None, nbytes=None, strict=false, max_samples=None,
-    max_memory=None))]
+    max_memory=None, window=None, threads=0))]
+#[allow(clippy::too_many_arguments)]
 pub fn decode<'py>(
     py: Python<'py>,
     data: &[u8],
@@ -249,6 +281,8 @@ pub fn decode<'py>(
     strict: bool,
     max_samples: Option<u64>,
     max_memory: Option<u64>,
+    window: Option<(usize, usize, usize, usize)>,
+    threads: usize,
 ) -> PyResult<DecodedArrays<'py>> {
     let request = DecodeRequest {
         bpp,
@@ -256,12 +290,21 @@ pub fn decode<'py>(
         strict,
         limits: limits(max_samples, max_memory),
         significance_map: false,
+        window: window.map(|(x, y, width, height)| Window {
+            x,
+            y,
+            width,
+            height,
+        }),
+        threads,
     };
     let decoded = decode_prefix(py, data, &request)?;
     let damage = decoded.damage.map(|d| {
         format!(
-            "{} damaged at byte {}; decoded the {} bytes before it (strict=True makes this an error)",
-            d.section, d.offset, decoded.bytes_used
+            "{}{} damaged at byte {}; decoded what precedes it (strict=True makes this an error)",
+            d.tile.map_or(String::new(), |t| format!("tile {t} ")),
+            d.section,
+            d.offset
         )
     });
     let nodata = decoded.raster.nodata;
@@ -347,7 +390,10 @@ pub fn info<'py>(
     out.set_item("payload_bytes", header.payload_len)?;
     out.set_item("residual_bytes", header.residual_len)?;
     out.set_item("file_bytes", data.len())?;
+    let layout = TiledLayout::read(&mut &data[..], limits.max_memory / 4).map_err(codec_error)?;
+    let expected = layout.as_ref().map_or(expected, |l| l.file_len());
     out.set_item("truncated", (data.len() as u64) < expected)?;
+    out.set_item("tiles", layout.map(|l| tiling_dict(py, &l)).transpose()?)?;
     add_georef(&out, header.georef.as_ref(), &header.metadata)?;
     out.set_item("passes", pass_ladder(py, &header, payload_start, valid)?)?;
     Ok(out)

@@ -148,6 +148,8 @@ pub fn mesh<'py>(
         strict: false,
         limits: limits(max_samples, max_memory),
         significance_map: true,
+        window: None,
+        threads: 1,
     };
     let decoded = decode_prefix(py, data, &request)?;
     let placement = placement(&decoded.raster, xy, z_scale)?;
@@ -183,7 +185,7 @@ fn table_rows(thresholds: Option<Vec<f64>>, bpp: Option<Vec<f64>>) -> PyResult<T
 /// The encoder's options for a table: one lossless 5/3 stream, or a 9/7 stream cut at
 /// the largest of the rows' rates.
 fn table_encoding(samples: usize, wavelet: &str, rows: &TableRows) -> PyResult<EncodeOptions> {
-    let mut options = EncodeOptions::new(Quality::Lossless, None);
+    let mut options = EncodeOptions::new(Quality::Lossless, None).single_stream();
     match (wavelet, rows) {
         ("53", _) => Ok(options),
         ("97", TableRows::BitRates(rates)) => {

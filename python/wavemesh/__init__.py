@@ -174,6 +174,8 @@ def encode(
     wavelet: Optional[str] = None,
     transform: Any = None,
     crs: Any = None,
+    tile: int = 1024,
+    threads: int = 0,
 ) -> bytes:
     """Encodes a 2-D array into ``.ezw`` bytes.
 
@@ -190,6 +192,12 @@ def encode(
     any strides and either memory order: its samples are read once, straight from its
     memory, into the coder's buffer (no intermediate numpy copy; only a non-native byte
     order is converted first).
+
+    An array with a side longer than ``tile`` is coded as independent tiles (as equal
+    as the array allows) with an index, so :func:`decode` of a ``window`` or at a rate
+    reads only what it needs; ``tile=0`` codes one stream whatever the size (what
+    :func:`mesh` needs). ``threads`` code tiles in parallel (0: one per core); the
+    bytes do not depend on it.
     """
     if np.ma.isMaskedArray(array):
         array, nodata = _fill_masked(array, nodata)
@@ -207,6 +215,8 @@ def encode(
         geotransform=geotransform,
         epsg=epsg,
         crs_wkt=wkt,
+        tile=_count("tile", tile),
+        threads=_count("threads", threads),
     )
 
 
@@ -223,6 +233,8 @@ def encode_file(
     no_metadata_items: bool = False,
     max_samples: Optional[int] = None,
     max_memory: Optional[int] = None,
+    tile: int = 1024,
+    threads: int = 0,
 ) -> int:
     """Encodes a DEM file into a ``.ezw`` file, as ``wavemesh encode`` does; returns the
     bytes written.
@@ -232,7 +244,7 @@ def encode_file(
     georeferencing and GDAL metadata (``no_metadata_items=True`` leaves out the free
     items). ``max_samples`` / ``max_memory`` refuse larger rasters before reading them
     (defaults 2³¹ samples, 2 GiB). The output is written atomically and never replaces
-    the input. Quality options as in :func:`encode`.
+    the input. Quality, ``tile`` and ``threads`` options as in :func:`encode`.
     """
     return _wavemesh.encode_file(
         os.fspath(path_in),
@@ -246,6 +258,8 @@ def encode_file(
         no_metadata_items=no_metadata_items,
         max_samples=_count("max_samples", max_samples),
         max_memory=_count("max_memory", max_memory),
+        tile=_count("tile", tile),
+        threads=_count("threads", threads),
     )
 
 
@@ -257,6 +271,8 @@ def decode(
     strict: bool = False,
     max_samples: Optional[int] = None,
     max_memory: Optional[int] = None,
+    window: Optional[Tuple[int, int, int, int]] = None,
+    threads: int = 0,
 ) -> "np.ma.MaskedArray":
     """Decodes ``.ezw`` bytes (or a file) to a ``numpy.ma.MaskedArray`` of the source's
     type and shape.
@@ -268,7 +284,16 @@ def decode(
     prefix of the stream: a coarser DEM. Damage (a failed chunk checksum) decodes the
     undamaged prefix with a ``RuntimeWarning``, or raises :class:`CodecError` with
     ``strict=True``. Georeferencing and metadata: :func:`info`.
+
+    ``window=(x, y, width, height)`` decodes only those columns and rows; of a tiled
+    file only the tiles the window touches are decoded (``threads`` of them at once, 0:
+    one per core). Of a tiled file, ``bpp``/``nbytes`` is a budget for the whole file,
+    shared among the tiles where it lowers the error most.
     """
+    if window is not None:
+        window = tuple(_count("window", v) for v in window)
+        if len(window) != 4:
+            raise ValueError(f"window wants (x, y, width, height), got {window!r}")
     samples, valid, nodata, damage = _wavemesh.decode(
         _bytes_of(data_or_path),
         bpp=bpp,
@@ -276,6 +301,8 @@ def decode(
         strict=strict,
         max_samples=_count("max_samples", max_samples),
         max_memory=_count("max_memory", max_memory),
+        window=window,
+        threads=_count("threads", threads),
     )
     if damage is not None:
         where = "" if isinstance(data_or_path, (bytes, bytearray, memoryview)) else (
@@ -305,7 +332,10 @@ def info(
     ``scale``, ``offset``, ``description``, ``unit_type``, ``metadata_items``; and
     ``passes``, the pass ladder: one dict per pass with ``plane``, ``end_byte`` (where it
     ends in the file), ``bpp`` and the encoder's ``estimated_rmse`` and
-    ``estimated_psnr_db`` of a decode that stops there.
+    ``estimated_psnr_db`` of a decode that stops there. ``tiles`` is ``None`` for a
+    single stream, else a dict of ``tile_width``, ``tile_height``, ``count`` and
+    ``index_bytes`` (a tiled file's header has no passes of its own, and its
+    ``valid_samples`` counts every sample).
     """
     header = _wavemesh.info(
         _bytes_of(data_or_path),

@@ -19,6 +19,8 @@ def encode(
     geotransform: Optional[Sequence[float]] = ...,
     epsg: Optional[int] = ...,
     crs_wkt: Optional[str] = ...,
+    tile: int = ...,
+    threads: int = ...,
 ) -> bytes: ...
 def encode_file(
     path_in: str,
@@ -33,6 +35,8 @@ def encode_file(
     no_metadata_items: bool = ...,
     max_samples: Optional[int] = ...,
     max_memory: Optional[int] = ...,
+    tile: int = ...,
+    threads: int = ...,
 ) -> int: ...
 def decode(
     data: bytes,
@@ -42,6 +46,8 @@ def decode(
     strict: bool = ...,
     max_samples: Optional[int] = ...,
     max_memory: Optional[int] = ...,
+    window: Optional[Tuple[int, int, int, int]] = ...,
+    threads: int = ...,
 ) -> Tuple[np.ndarray, np.ndarray, Optional[float], Optional[str]]:
     """``(samples, valid, nodata, damage)``: ``damage`` is the warning's text, if any."""
 
