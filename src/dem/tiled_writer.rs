@@ -17,8 +17,8 @@ use std::thread::JoinHandle;
 
 use tiff::encoder::colortype::{self, ColorType};
 use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel};
-use tiff::encoder::{DirectoryEncoder, TiffEncoder, TiffKind, TiffValue};
-use tiff::tags::{CompressionMethod, Tag};
+use tiff::encoder::{DirectoryEncoder, Rational, TiffEncoder, TiffKind, TiffValue};
+use tiff::tags::{CompressionMethod, ResolutionUnit, Tag};
 use tiff::TiffError;
 use wavemesh_codec::{Raster, SampleType, Samples};
 
@@ -322,6 +322,10 @@ impl Layout {
         dir.write_tag(Tag::SamplesPerPixel, 1u16)?;
         dir.write_tag(Tag::PlanarConfiguration, 1u16)?;
         dir.write_tag(Tag::Predictor, predictor)?;
+        // As the whole-raster writer (the `tiff` crate) does, so GDAL sees the same tags.
+        dir.write_tag(Tag::XResolution, Rational { n: 1, d: 1 })?;
+        dir.write_tag(Tag::YResolution, Rational { n: 1, d: 1 })?;
+        dir.write_tag(Tag::ResolutionUnit, ResolutionUnit::None.to_u16())?;
         match self.chunks {
             Chunking::Tiles(tile) => {
                 dir.write_tag(Tag::TileWidth, tile)?;
