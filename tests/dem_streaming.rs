@@ -565,3 +565,22 @@ fn tiled_writer_refuses_misuse_and_leaves_nothing_behind() {
     let left: Vec<_> = std::fs::read_dir(scratch.path()).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+#[test]
+fn synth_writes_tiles_with_tile_and_refuses_sides_tiff_forbids() {
+    let scratch = support::scratch("dem_streaming");
+    let path = scratch.path().join("synth.tif");
+    let path_arg = support::s(&path);
+    let report = support::json(&[
+        "synth", path_arg, "--size", "100x50", "--tile", "32", "--json",
+    ]);
+    assert_eq!(report["width"], 100);
+    let file = std::fs::File::open(&path).unwrap();
+    let decoder = tiff::decoder::Decoder::new(file).unwrap();
+    assert_eq!(decoder.get_chunk_type(), tiff::decoder::ChunkType::Tile);
+    assert_eq!(decoder.chunk_dimensions(), (32, 32));
+    let refused = support::wavemesh(&["synth", path_arg, "--size", "100x50", "--tile", "20"]);
+    assert_eq!(refused.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(stderr.contains("multiple of 16"), "{stderr}");
+}

@@ -19,7 +19,7 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Write N x N tiles (a multiple of 16) instead of 16-row strips.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_tile)]
     tile: Option<u32>,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
@@ -37,6 +37,16 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
             )),
         },
         None => Err(format!("expected WIDTHxHEIGHT, got {text}")),
+    }
+}
+
+/// A tile side TIFF allows: a positive multiple of 16.
+fn parse_tile(text: &str) -> Result<u32, String> {
+    match text.trim().parse::<u32>() {
+        Ok(n) if n > 0 && n.is_multiple_of(16) => Ok(n),
+        _ => Err(format!(
+            "expected a positive multiple of 16 (TIFF's rule for tiles), got {text}"
+        )),
     }
 }
 

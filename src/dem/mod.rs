@@ -7,6 +7,10 @@
 //!
 //! Writers: GeoTIFF, grayscale PNG and ESRI ASCII grid, chosen by [`write_dem`] from the
 //! extension and always written atomically (see [`crate::atomic::write_atomic`]).
+//!
+//! Streaming, for rasters larger than memory: [`RowBands`] reads a DEM by bands of rows
+//! (a GeoTIFF from the strips or tiles the band touches only), and
+//! [`TiledGeoTiffWriter`] writes a tiled GeoTIFF by bands, one row of tiles in memory.
 
 mod asc;
 mod bands;
