@@ -79,6 +79,8 @@ struct Layout {
     height: u32,
     chunks: Chunking,
     sample_type: SampleType,
+    /// Write a BigTIFF: the chunks may pass 4 GiB.
+    big: bool,
 }
 
 impl TiledGeoTiffWriter {
@@ -271,25 +273,20 @@ impl Layout {
                 info.width, info.height
             )));
         };
+        // The chunks (tiles padded, and Deflate's worst case on top) may pass 4 GiB.
+        let (padded_width, padded_height) = match chunks {
+            Chunking::Tiles(tile) => (width.next_multiple_of(tile), height.next_multiple_of(tile)),
+            Chunking::Strips(_) => (width, height),
+        };
+        let bytes =
+            u64::from(padded_width) * u64::from(padded_height) * info.sample_type.bytes() as u64;
         Ok(Layout {
             width,
             height,
             chunks,
             sample_type: info.sample_type,
+            big: bytes + bytes / 64 + (64 << 20) > u64::from(u32::MAX),
         })
-    }
-
-    /// Whether the chunks (tiles padded, and Deflate's worst case on top) may pass 4 GiB.
-    fn needs_bigtiff(&self) -> bool {
-        let (width, height) = match self.chunks {
-            Chunking::Tiles(tile) => (
-                self.width.next_multiple_of(tile),
-                self.height.next_multiple_of(tile),
-            ),
-            Chunking::Strips(_) => (self.width, self.height),
-        };
-        let bytes = u64::from(width) * u64::from(height) * self.sample_type.bytes() as u64;
-        bytes + bytes / 64 + (64 << 20) > u64::from(u32::MAX)
     }
 
     /// The chunk offsets and byte counts tags.
@@ -348,7 +345,7 @@ fn write_file(
     chunks_in: Receiver<Message>,
 ) -> Result<AtomicFile, DemError> {
     let mut out = BufWriter::new(file.file());
-    let finished = if layout.needs_bigtiff() {
+    let finished = if layout.big {
         write_image(TiffEncoder::new_big(&mut out), layout, tags, chunks_in)
     } else {
         write_image(TiffEncoder::new(&mut out), layout, tags, chunks_in)
@@ -470,4 +467,51 @@ fn deflate(data: &[u8]) -> io::Result<Vec<u8>> {
     let mut out = Vec::with_capacity(data.len() / 2);
     Deflate::with_level(DeflateLevel::Fast).write_to(&mut out, data)?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::{read_dem, ReadOptions};
+
+    fn i16_info(width: usize, height: usize) -> DemInfo {
+        DemInfo {
+            width,
+            height,
+            sample_type: SampleType::I16,
+            nodata: Some(-32768.0),
+            georef: None,
+            metadata: Default::default(),
+        }
+    }
+
+    #[test]
+    fn bigtiff_past_4_gib_and_it_reads_back() {
+        let big = |w, h, chunks| Layout::new(&i16_info(w, h), chunks).unwrap().big;
+        assert!(!big(16384, 16384, Chunking::Tiles(512)));
+        assert!(big(65536, 32768, Chunking::Tiles(512)));
+        assert!(big(65536, 32768, Chunking::Strips(16)));
+        assert!(!big(40000, 40000, Chunking::Strips(16)));
+        // A small raster through the same writer thread, as BigTIFF.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.tif");
+        let samples = Samples::I16((0..1200).map(|i| i as i16 * 53 - 600).collect());
+        let mut raster = Raster::new(40, 30, samples).unwrap();
+        raster.nodata = Some(-32768.0);
+        let info = DemInfo::of(&raster);
+        let mut layout = Layout::new(&info, Chunking::Tiles(32)).unwrap();
+        layout.big = true;
+        let (send, receive) = sync_channel(2);
+        let row = compress_chunk_row(&raster.samples, 30, 40, layout.chunks).unwrap();
+        send.send(Message::ChunkRow(row)).unwrap();
+        send.send(Message::Finish).unwrap();
+        let file = AtomicFile::create(&path).unwrap();
+        let tags = GeoTags::new(&info).unwrap();
+        write_file(file, &path, &layout, &tags, receive)
+            .unwrap()
+            .commit()
+            .unwrap();
+        assert_eq!(&std::fs::read(&path).unwrap()[..4], b"II+\0");
+        assert_eq!(read_dem(&path, &ReadOptions::default()).unwrap(), raster);
+    }
 }
