@@ -79,11 +79,14 @@ fn a_4096_square_geotiff_streams_in_a_band_and_a_row_of_chunks() {
     let _serial = SERIAL.lock().unwrap();
     let scratch = support::scratch("dem_streaming_memory");
     let (side, tile) = (4096usize, 256usize);
-    let ([write, restripe, tiled, stripped], _) =
+    let ([write, restripe, tiled, stripped], [tiled_s, strip_s]) =
         stream_both_layouts(scratch.path(), side as u32, tile as u32);
+    let msamples = (side * side) as f64 / 1e6;
     println!(
         "4096² heap peaks (bytes): tiled write {write}, restripe {restripe}, \
-         tiled read {tiled}, stripped read {stripped}"
+         tiled read {tiled} ({:.1} Msamples/s), stripped read {stripped} ({:.1} Msamples/s)",
+        msamples / tiled_s,
+        msamples / strip_s
     );
     let raster = side * side * 2;
     let band = side * BAND_ROWS * 2;
