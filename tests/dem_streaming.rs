@@ -584,3 +584,31 @@ fn synth_writes_tiles_with_tile_and_refuses_sides_tiff_forbids() {
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(stderr.contains("multiple of 16"), "{stderr}");
 }
+
+#[test]
+fn damaged_geotiffs_give_errors_by_bands_not_panics() {
+    let scratch = support::scratch("dem_streaming");
+    let whole = scratch.path().join("whole.tif");
+    write_tiled_geotiff(&whole, 200, 150, &FractalTerrain::new(5), 64).unwrap();
+    let bytes = std::fs::read(&whole).unwrap();
+    let cut = scratch.path().join("cut.tif");
+    // The tiles come first and the directory last: every cut loses the directory or data.
+    for len in [8, 100, bytes.len() / 3, bytes.len() - 40, bytes.len() - 1] {
+        std::fs::write(&cut, &bytes[..len]).unwrap();
+        let read_all = || -> Result<(), DemError> {
+            let mut bands = RowBands::open(&cut, &ReadOptions::default())?;
+            for y0 in (0..150).step_by(40) {
+                bands.read_rows(y0, 40.min(150 - y0))?;
+            }
+            Ok(())
+        };
+        assert!(read_all().is_err(), "cut at {len}");
+    }
+    // A tile's bytes scrambled: Deflate notices.
+    let mut scrambled = bytes.clone();
+    scrambled[200..400].fill(0xA5);
+    std::fs::write(&cut, &scrambled).unwrap();
+    let mut bands = RowBands::open(&cut, &ReadOptions::default()).unwrap();
+    let err = bands.read_rows(0, 10).unwrap_err().to_string();
+    assert!(err.contains("cut.tif"), "{err}");
+}
