@@ -287,6 +287,12 @@ fn bands_equal_read_dem_on_synthetic_strips_and_tiles_of_odd_sizes() {
     for path in [&strips, &tiles] {
         assert_bands_equal(path, &reference, &[1, 16, 37, 48, 250]);
     }
+    let chunk_rows = |path: &Path| {
+        RowBands::open(path, &ReadOptions::default())
+            .unwrap()
+            .chunk_rows()
+    };
+    assert_eq!((chunk_rows(&strips), chunk_rows(&tiles)), (16, 48));
     let mut decoder = tiff::decoder::Decoder::new(std::fs::File::open(&tiles).unwrap()).unwrap();
     assert_eq!(decoder.get_chunk_type(), tiff::decoder::ChunkType::Tile);
     assert_eq!(decoder.chunk_dimensions(), (48, 48));

@@ -94,6 +94,16 @@ impl RowBands {
         &self.info
     }
 
+    /// Rows of one row of chunks: a strip's or a tile's height (the raster's height for
+    /// formats read whole). Bands that start and end on multiples of it decode each chunk
+    /// once and keep nothing between calls.
+    pub fn chunk_rows(&self) -> usize {
+        match &self.source {
+            BandSource::Chunks(chunks) => chunks.chunk_rows(),
+            BandSource::Whole(_) => self.info.height,
+        }
+    }
+
     /// Rows `y0..y0 + rows` as a `width × rows` raster: samples exactly as [`read_dem`]
     /// gives them, the nodata value set, no georeferencing.
     pub fn read_rows(&mut self, y0: usize, rows: usize) -> Result<Raster, DemError> {

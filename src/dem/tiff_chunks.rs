@@ -105,6 +105,11 @@ impl<R: Read + Seek> ChunkReader<R> {
         })
     }
 
+    /// Rows of one row of chunks.
+    pub(super) fn chunk_rows(&self) -> usize {
+        self.chunk_height
+    }
+
     /// Samples one row of chunks holds at most (padding of edge tiles included).
     pub(super) fn chunk_row_samples(&self) -> u64 {
         let across = self.width.div_ceil(self.chunk_width) as u64;
