@@ -138,22 +138,63 @@ fn replace_file(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
 ) -> io::Result<()> {
-    let dir = parent_dir(path);
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".wavemesh-tmp-");
-    if let Some(permissions) = target_permissions(path) {
-        builder.permissions(permissions);
-    }
-    let mut temp = builder.tempfile_in(&dir)?;
+    let mut out = AtomicFile::replacing(path)?;
     {
-        let mut writer = BufWriter::new(temp.as_file_mut());
+        let mut writer = BufWriter::new(out.file());
         write(&mut writer)?;
         writer.flush()?;
     }
-    temp.as_file().sync_all()?;
-    temp.persist(path).map_err(|e| e.error)?;
-    sync_dir(&dir);
-    Ok(())
+    out.commit()
+}
+
+/// A regular file written a piece at a time, across calls, under a temporary name beside
+/// its destination: [`AtomicFile::commit`] renames it into place; dropping it uncommitted
+/// removes it and leaves the destination untouched. The handle form of
+/// [`write_atomic_seekable`], for writers that outlive one closure.
+pub struct AtomicFile {
+    temp: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl AtomicFile {
+    /// Starts replacing `path` (symlinks followed). Like [`write_atomic_seekable`], only a
+    /// regular file can take a writer that seeks: `-`, devices and FIFOs are refused with
+    /// [`io::ErrorKind::InvalidInput`], and so are directories.
+    pub fn create(path: &Path) -> io::Result<AtomicFile> {
+        match destination(path)? {
+            Destination::File(file) => AtomicFile::replacing(&file),
+            _ => Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "this output seeks while it is written: name a regular file",
+            )),
+        }
+    }
+
+    /// The temporary file for the regular file `path` (already resolved).
+    fn replacing(path: &Path) -> io::Result<AtomicFile> {
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".wavemesh-tmp-");
+        if let Some(permissions) = target_permissions(path) {
+            builder.permissions(permissions);
+        }
+        Ok(AtomicFile {
+            temp: builder.tempfile_in(parent_dir(path))?,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The temporary file, to write (and seek) in.
+    pub fn file(&mut self) -> &mut File {
+        self.temp.as_file_mut()
+    }
+
+    /// Syncs the temporary file and renames it over the destination.
+    pub fn commit(self) -> io::Result<()> {
+        self.temp.as_file().sync_all()?;
+        self.temp.persist(&self.path).map_err(|e| e.error)?;
+        sync_dir(&parent_dir(&self.path));
+        Ok(())
+    }
 }
 
 /// The directory holding `path` (`.` for a bare file name).
@@ -239,6 +280,25 @@ mod tests {
         assert_eq!(err.to_string(), "boom");
         assert_eq!(fs::read(&path).unwrap(), b"old");
         assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn atomic_file_commits_or_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.bin");
+        fs::write(&path, b"old").unwrap();
+        let mut abandoned = AtomicFile::create(&path).unwrap();
+        abandoned.file().write_all(b"partial").unwrap();
+        drop(abandoned);
+        assert_eq!(fs::read(&path).unwrap(), b"old");
+        assert!(leftovers(dir.path()).is_empty());
+        let mut out = AtomicFile::create(&path).unwrap();
+        out.file().write_all(b"new").unwrap();
+        out.commit().unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"new");
+        assert!(leftovers(dir.path()).is_empty());
+        let err = AtomicFile::create(Path::new("-")).err().unwrap();
+        assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
     }
 
     #[test]

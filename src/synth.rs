@@ -1,14 +1,13 @@
 //! Synthetic terrain for tests and benchmarks of large DEMs: fractal (fBm) value noise,
 //! deterministic for a seed and computed sample by sample, so a DEM of any size is
-//! written as a GeoTIFF strip by strip in memory bounded by one strip.
+//! written as a GeoTIFF strip by strip (or row of tiles by row of tiles) in memory
+//! bounded by one strip (one row of tiles).
 
-use std::io::{self, Seek, Write};
 use std::path::Path;
 
-use tiff::encoder::{colortype, Compression, DeflateLevel, TiffEncoder, TiffKind};
-use tiff::encoder::{TiffKindBig, TiffKindStandard};
-use tiff::tags::Tag;
-use wavemesh_codec::geokey;
+use wavemesh_codec::{geokey, Georef, Metadata, Raster, SampleType, Samples};
+
+use crate::dem::{DemError, DemInfo, TiledGeoTiffWriter};
 
 /// Fractal terrain: `octaves` layers of smoothly interpolated lattice noise, each of
 /// half the wavelength and `persistence` times the amplitude of the one before.
@@ -159,73 +158,91 @@ const ROWS_PER_STRIP: u32 = 16;
 /// Pixel size of the written GeoTIFF, metres.
 const PIXEL_METRES: f64 = 10.0;
 
-/// Writes `terrain` as a `width × height` i16 GeoTIFF at `path` (Deflate, strips of
-/// [`ROWS_PER_STRIP`] rows, BigTIFF when the samples pass 2 GiB; UTM zone 32N with
-/// 10 m pixels), one strip in memory at a time, atomically.
-pub fn write_geotiff(
-    path: &Path,
-    width: u32,
-    height: u32,
-    terrain: &FractalTerrain,
-) -> io::Result<()> {
-    crate::atomic::write_atomic_seekable(path, |file| {
-        let big = u64::from(width) * u64::from(height) * 2 > (2u64 << 30);
-        let result = if big {
-            write_strips(
-                TiffEncoder::<_, TiffKindBig>::new_big(file),
-                width,
-                height,
-                terrain,
-            )
-        } else {
-            write_strips(
-                TiffEncoder::<_, TiffKindStandard>::new(file),
-                width,
-                height,
-                terrain,
-            )
-        };
-        result.map_err(io::Error::other)
-    })
-}
-
-/// The strips and georeferencing tags of [`write_geotiff`].
-fn write_strips<W: Write + Seek, K: TiffKind>(
-    encoder: tiff::TiffResult<TiffEncoder<W, K>>,
-    width: u32,
-    height: u32,
-    terrain: &FractalTerrain,
-) -> tiff::TiffResult<()> {
-    let mut encoder = encoder?.with_compression(Compression::Deflate(DeflateLevel::Fast));
-    let mut image = encoder.new_image::<colortype::GrayI16>(width, height)?;
-    image.rows_per_strip(ROWS_PER_STRIP)?;
-    let tags = image.encoder();
-    tags.write_tag(
-        Tag::ModelPixelScaleTag,
-        &[PIXEL_METRES, PIXEL_METRES, 0.0][..],
-    )?;
-    let origin = [0.0, 0.0, 0.0, 500_000.0, 5_000_000.0, 0.0];
-    tags.write_tag(Tag::ModelTiepointTag, &origin[..])?;
-    // Projected, PixelIsArea, EPSG:32632 (UTM zone 32N).
+/// Where the written GeoTIFFs lie: UTM zone 32N (EPSG:32632, PixelIsArea), 10 m pixels,
+/// the top-left corner at 500 000 E, 5 000 000 N.
+pub fn utm32_georef() -> Georef {
     #[rustfmt::skip]
-    let keys: [u16; 16] = [
+    let keys = vec![
         1, 1, 0, 3,
         geokey::MODEL_TYPE, 0, 1, geokey::MODEL_PROJECTED,
         geokey::RASTER_TYPE, 0, 1, 1,
         geokey::PROJECTED_TYPE, 0, 1, 32632,
     ];
-    tags.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
-    let mut strip = vec![0i16; width as usize * ROWS_PER_STRIP as usize];
-    let mut y = 0usize;
-    while image.next_strip_sample_count() > 0 {
-        let samples = image.next_strip_sample_count() as usize;
-        for row in strip[..samples].chunks_exact_mut(width as usize) {
-            terrain.row_i16(y, row);
-            y += 1;
-        }
-        image.write_strip(&strip[..samples])?;
+    Georef {
+        geotransform: [
+            500_000.0,
+            PIXEL_METRES,
+            0.0,
+            5_000_000.0,
+            0.0,
+            -PIXEL_METRES,
+        ],
+        geo_key_directory: keys,
+        geo_double_params: Vec::new(),
+        geo_ascii_params: String::new(),
     }
-    image.finish()
+}
+
+/// Writes `terrain` as a `width × height` i16 GeoTIFF at `path` in `tile × tile` tiles
+/// (Deflate, BigTIFF when it may pass 4 GiB; georeferenced by [`utm32_georef`]), one row
+/// of tiles in memory at a time, atomically.
+pub fn write_tiled_geotiff(
+    path: &Path,
+    width: u32,
+    height: u32,
+    terrain: &FractalTerrain,
+    tile: u32,
+) -> Result<(), DemError> {
+    let info = terrain_info(width, height);
+    let writer = TiledGeoTiffWriter::create(path, &info, tile)?;
+    write_bands(writer, &info, tile as usize, terrain)
+}
+
+/// Writes `terrain` as a `width × height` i16 GeoTIFF at `path` in strips of
+/// [`ROWS_PER_STRIP`] rows, otherwise as [`write_tiled_geotiff`]: one strip in memory at a
+/// time, atomically.
+pub fn write_geotiff(
+    path: &Path,
+    width: u32,
+    height: u32,
+    terrain: &FractalTerrain,
+) -> Result<(), DemError> {
+    let info = terrain_info(width, height);
+    let writer = TiledGeoTiffWriter::create_striped(path, &info, ROWS_PER_STRIP)?;
+    write_bands(writer, &info, ROWS_PER_STRIP as usize, terrain)
+}
+
+/// What the written GeoTIFFs hold besides their samples.
+fn terrain_info(width: u32, height: u32) -> DemInfo {
+    DemInfo {
+        width: width as usize,
+        height: height as usize,
+        sample_type: SampleType::I16,
+        nodata: None,
+        georef: Some(utm32_georef()),
+        metadata: Metadata::default(),
+    }
+}
+
+/// Feeds `writer` bands of `rows` rows of `terrain`, then finishes it.
+fn write_bands(
+    mut writer: TiledGeoTiffWriter,
+    info: &DemInfo,
+    rows: usize,
+    terrain: &FractalTerrain,
+) -> Result<(), DemError> {
+    let (width, height) = (info.width, info.height);
+    for y0 in (0..height).step_by(rows) {
+        let rows = rows.min(height - y0);
+        let mut band = vec![0i16; width * rows];
+        for (y, row) in (y0..).zip(band.chunks_exact_mut(width)) {
+            terrain.row_i16(y, row);
+        }
+        let band = Raster::new(width, rows, Samples::I16(band))
+            .map_err(|e| DemError::InvalidRaster(e.to_string()))?;
+        writer.write_rows(y0, &band)?;
+    }
+    writer.finish()
 }
 
 #[cfg(test)]

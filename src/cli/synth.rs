@@ -1,16 +1,16 @@
-//! `synth`: a fractal test DEM of any size, written strip by strip.
+//! `synth`: a fractal test DEM of any size, written strip by strip or tile row by tile row.
 
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use wavemesh::synth::{write_geotiff, FractalTerrain};
+use wavemesh::synth::{write_geotiff, write_tiled_geotiff, FractalTerrain};
 
 use super::coding::SCHEMA_VERSION;
 use super::{print_json, timed, with_progress, CliError};
 
 #[derive(Debug, clap::Args)]
 pub struct SynthArgs {
-    /// Output GeoTIFF (i16 metres, UTM 32N, 10 m pixels; BigTIFF past 2 GiB).
+    /// Output GeoTIFF (i16 metres, UTM 32N, 10 m pixels; BigTIFF past 4 GiB).
     output: PathBuf,
     /// Raster size, WIDTHxHEIGHT (e.g. 16384x16384).
     #[arg(long, value_parser = parse_size)]
@@ -18,6 +18,9 @@ pub struct SynthArgs {
     /// Seed of the terrain: the same seed and size give the same file.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Write N x N tiles (a multiple of 16) instead of 16-row strips.
+    #[arg(long, value_name = "N", value_parser = parse_tile)]
+    tile: Option<u32>,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
     json: bool,
@@ -34,6 +37,16 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
             )),
         },
         None => Err(format!("expected WIDTHxHEIGHT, got {text}")),
+    }
+}
+
+/// A tile side TIFF allows: a positive multiple of 16.
+fn parse_tile(text: &str) -> Result<u32, String> {
+    match text.trim().parse::<u32>() {
+        Ok(n) if n > 0 && n.is_multiple_of(16) => Ok(n),
+        _ => Err(format!(
+            "expected a positive multiple of 16 (TIFF's rule for tiles), got {text}"
+        )),
     }
 }
 
@@ -55,9 +68,15 @@ pub fn run(args: &SynthArgs) -> Result<(), CliError> {
     let (width, height) = args.size;
     let terrain = FractalTerrain::new(args.seed);
     let (written, seconds, peak) = with_progress("writing terrain", || {
-        timed(|| write_geotiff(&args.output, width, height, &terrain))
+        timed(|| match args.tile {
+            Some(tile) => write_tiled_geotiff(&args.output, width, height, &terrain, tile)
+                .map_err(CliError::DemOutput),
+            None => {
+                write_geotiff(&args.output, width, height, &terrain).map_err(CliError::DemOutput)
+            }
+        })
     });
-    written.map_err(|e| CliError::Output(args.output.clone(), e.to_string()))?;
+    written?;
     let bytes = std::fs::metadata(&args.output).map_or(0, |m| m.len());
     let samples = f64::from(width) * f64::from(height);
     let report = SynthReport {

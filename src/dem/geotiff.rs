@@ -10,23 +10,26 @@
 //! Writes the same five sample types, Deflate-compressed (with the horizontal predictor
 //! for integers), with the georeferencing, nodata and GDAL_METADATA tags.
 
-use std::io::{Cursor, Read, Seek};
+use std::io::{Cursor, Read, Seek, Write};
 use std::path::Path;
 
-use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::decoder::Decoder;
 use tiff::encoder::colortype::{self, ColorType};
-use tiff::encoder::{Compression, DeflateLevel, DirectoryEncoder, TiffEncoder, TiffKindStandard};
+use tiff::encoder::{Compression, DeflateLevel, DirectoryEncoder, TiffEncoder, TiffKind};
 use tiff::tags::{Predictor, Tag};
 use tiff::TiffError;
 use wavemesh_codec::{geokey, Georef, Metadata, Raster, SampleType, Samples};
 
-use super::{checked_sample_count, gdal_metadata, make_raster, read_error, DemError, ReadOptions};
+use super::tiff_chunks::ChunkReader;
+use super::{
+    checked_sample_count, gdal_metadata, make_raster, read_error, DemError, DemInfo, ReadOptions,
+};
 
 /// TIFF `PhotometricInterpretation` value `WhiteIsZero`.
 const WHITE_IS_ZERO: u16 = 0;
 
 /// Maps a `tiff` error met while reading `path` to a [`DemError`].
-fn tiff_error(path: &Path, e: TiffError) -> DemError {
+pub(super) fn tiff_error(path: &Path, e: TiffError) -> DemError {
     match e {
         TiffError::IoError(e) => read_error(path, e),
         TiffError::UnsupportedError(e) => DemError::Unsupported(format!("TIFF: {e}")),
@@ -37,45 +40,47 @@ fn tiff_error(path: &Path, e: TiffError) -> DemError {
     }
 }
 
-/// Reads a single-band TIFF/GeoTIFF.
+/// Opens a single-band TIFF/GeoTIFF: everything but its samples, and the chunk decoder
+/// that reads them (nothing is decoded or allocated for samples yet).
+pub(super) fn open<R: Read + Seek>(
+    reader: R,
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(DemInfo, ChunkReader<R>), DemError> {
+    let err = |e| tiff_error(path, e);
+    let mut decoder = Decoder::new(reader).map_err(err)?;
+    let (width, height) = decoder.dimensions().map_err(err)?;
+    let sample_type = sample_type(&mut decoder, path)?;
+    if width == 0 || height == 0 {
+        return Err(DemError::Malformed(format!(
+            "raster is {width} x {height}; expected a positive width and height"
+        )));
+    }
+    check_compression(&mut decoder, path, options)?;
+    let info = DemInfo {
+        width: width as usize,
+        height: height as usize,
+        sample_type,
+        georef: read_georef(&mut decoder, path)?,
+        nodata: read_nodata(&mut decoder, path)?,
+        metadata: read_metadata(&mut decoder, path)?,
+    };
+    Ok((info, ChunkReader::new(decoder, path, sample_type)?))
+}
+
+/// Reads a single-band TIFF/GeoTIFF whole, after checking its size against `options`.
 pub(super) fn read<R: Read + Seek>(
     reader: R,
     path: &Path,
     options: &ReadOptions,
 ) -> Result<Raster, DemError> {
-    let err = |e| tiff_error(path, e);
-    let mut decoder = Decoder::new(reader).map_err(err)?;
-    let (width, height) = decoder.dimensions().map_err(err)?;
-    let sample_type = sample_type(&mut decoder, path)?;
-    let count = checked_sample_count(u64::from(width), u64::from(height), sample_type, options)?;
-    check_compression(&mut decoder, path, options)?;
-
-    let bytes = count.saturating_mul(sample_type.bytes());
-    let mut limits = Limits::default();
-    limits.decoding_buffer_size = limits.decoding_buffer_size.max(bytes);
-    limits.intermediate_buffer_size = limits.intermediate_buffer_size.max(bytes);
-    let mut decoder = decoder.with_limits(limits);
-
-    let georef = read_georef(&mut decoder, path)?;
-    let nodata = read_nodata(&mut decoder, path)?;
-    let metadata = read_metadata(&mut decoder, path)?;
-    let samples = match (sample_type, decoder.read_image().map_err(err)?) {
-        (SampleType::U8, DecodingResult::U8(v)) => Samples::U8(v),
-        (SampleType::U16, DecodingResult::U16(v)) => Samples::U16(v),
-        (SampleType::I16, DecodingResult::I16(v)) => Samples::I16(v),
-        (SampleType::I32, DecodingResult::I32(v)) => Samples::I32(v),
-        (SampleType::F32, DecodingResult::F32(v)) => Samples::F32(v),
-        _ => {
-            return Err(DemError::Malformed(format!(
-                "TIFF decoded to another sample type than its tags declare ({})",
-                sample_type.name()
-            )))
-        }
-    };
-    let mut raster = make_raster(width as usize, height as usize, samples)?;
-    raster.nodata = nodata;
-    raster.georef = georef;
-    raster.metadata = metadata;
+    let (info, mut chunks) = open(reader, path, options)?;
+    let (width, height) = (info.width, info.height);
+    checked_sample_count(width as u64, height as u64, info.sample_type, options)?;
+    let mut raster = make_raster(width, height, chunks.read_rows(0, height)?)?;
+    raster.nodata = info.nodata;
+    raster.georef = info.georef;
+    raster.metadata = info.metadata;
     Ok(raster)
 }
 
@@ -334,7 +339,7 @@ pub(super) fn encode(raster: &Raster) -> Result<Vec<u8>, DemError> {
     if bytes > u64::from(u32::MAX) - (64 << 20) {
         return Err(too_big());
     }
-    let tags = GeoTags::new(raster)?;
+    let tags = GeoTags::new(&DemInfo::of(raster))?;
     let mut out = Cursor::new(Vec::new());
     let result = match &raster.samples {
         Samples::U8(v) => write_image::<colortype::Gray8>(&mut out, width, height, v, &tags),
@@ -347,8 +352,8 @@ pub(super) fn encode(raster: &Raster) -> Result<Vec<u8>, DemError> {
     Ok(out.into_inner())
 }
 
-/// Georeferencing and nodata tags ready to write.
-struct GeoTags {
+/// Georeferencing, nodata and metadata tags ready to write.
+pub(super) struct GeoTags {
     /// ModelPixelScale + ModelTiepoint, for north-up rasters.
     scale_tiepoint: Option<([f64; 3], [f64; 6])>,
     /// ModelTransformation, for rotated or flipped rasters.
@@ -362,12 +367,11 @@ struct GeoTags {
 }
 
 impl GeoTags {
-    fn new(raster: &Raster) -> Result<GeoTags, DemError> {
-        let nodata = raster
-            .nodata
-            .map(|v| format_nodata(v, raster.sample_type()));
-        let metadata = gdal_metadata::to_tiff_xml(&raster.metadata);
-        let Some(georef) = &raster.georef else {
+    /// The tags for a raster described by `info`.
+    pub(super) fn new(info: &DemInfo) -> Result<GeoTags, DemError> {
+        let nodata = info.nodata.map(|v| format_nodata(v, info.sample_type));
+        let metadata = gdal_metadata::to_tiff_xml(&info.metadata);
+        let Some(georef) = &info.georef else {
             return Ok(GeoTags {
                 scale_tiepoint: None,
                 transformation: None,
@@ -417,9 +421,10 @@ impl GeoTags {
         })
     }
 
-    fn write(
+    /// Writes the tags into the image directory `dir`.
+    pub(super) fn write<W: Write + Seek, K: TiffKind>(
         &self,
-        dir: &mut DirectoryEncoder<'_, &mut Cursor<Vec<u8>>, TiffKindStandard>,
+        dir: &mut DirectoryEncoder<'_, W, K>,
     ) -> tiff::TiffResult<()> {
         if let Some((scale, tiepoint)) = &self.scale_tiepoint {
             dir.write_tag(Tag::ModelPixelScaleTag, &scale[..])?;

@@ -7,14 +7,24 @@
 //!
 //! Writers: GeoTIFF, grayscale PNG and ESRI ASCII grid, chosen by [`write_dem`] from the
 //! extension and always written atomically (see [`crate::atomic::write_atomic`]).
+//!
+//! Streaming, for rasters larger than memory: [`RowBands`] reads a DEM by bands of rows
+//! (a GeoTIFF from the strips or tiles the band touches only), and
+//! [`TiledGeoTiffWriter`] writes a tiled GeoTIFF by bands, one row of tiles in memory.
 
 mod asc;
+mod bands;
 mod gdal_metadata;
 mod geotiff;
 mod hgt;
 mod png;
 mod side_files;
 mod terrain_rgb;
+mod tiff_chunks;
+mod tiled_writer;
+
+pub use bands::{DemInfo, RowBands};
+pub use tiled_writer::TiledGeoTiffWriter;
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader};
@@ -93,6 +103,37 @@ pub enum DemError {
     /// The raster handed to a writer is inconsistent (sample count ≠ width × height).
     #[error("invalid raster: {0}")]
     InvalidRaster(String),
+    /// A band of rows and what the reader keeps beside it (one row of TIFF chunks, or the
+    /// whole raster for formats read whole) exceed [`ReadOptions::max_samples`] or
+    /// [`ReadOptions::max_memory`].
+    #[error(
+        "a band of {rows} rows of {width} samples, plus the {kept} samples the reader keeps \
+         (one row of chunks), needs {needed} {unit}, more than the limit of {limit} {unit}"
+    )]
+    BandOverLimit {
+        /// Raster width.
+        width: u64,
+        /// Rows of the band.
+        rows: u64,
+        /// Samples the reader holds besides the band.
+        kept: u64,
+        /// Samples or bytes needed.
+        needed: u128,
+        /// The configured limit.
+        limit: u64,
+        /// `samples` or `bytes`.
+        unit: &'static str,
+    },
+    /// Rows asked for that the raster does not have.
+    #[error("rows {y0}..{} asked for, but the raster has {height} rows", y0 + rows)]
+    RowsOutOfRange {
+        /// First row asked for.
+        y0: usize,
+        /// Rows asked for.
+        rows: usize,
+        /// Rows of the raster.
+        height: usize,
+    },
 }
 
 impl DemError {
@@ -284,11 +325,8 @@ pub fn detect_format(
 /// The raster size is checked against `options.max_samples` before sample buffers are
 /// allocated. Errors name the file; no input makes this panic.
 pub fn read_dem(path: &Path, options: &ReadOptions) -> Result<Raster, DemError> {
-    let file = File::open(path).map_err(|e| read_error(path, e))?;
-    let len = file.metadata().map_err(|e| read_error(path, e))?.len();
-    let mut reader = BufReader::new(file);
-    let head = reader.fill_buf().map_err(|e| read_error(path, e))?.to_vec();
-    let result = match detect_format(path, &head, options)? {
+    let (reader, len, format) = open_detected(path, options)?;
+    let result = match format {
         DemFormat::GeoTiff => geotiff::read(reader, path, options),
         DemFormat::Png => png::read(reader, path, options),
         DemFormat::TerrainRgb => terrain_rgb::read(reader, path, options),
@@ -296,6 +334,22 @@ pub fn read_dem(path: &Path, options: &ReadOptions) -> Result<Raster, DemError> 
         DemFormat::Asc => asc::read(reader, path, options),
     };
     result.map_err(|e| e.in_file(path))
+}
+
+/// A DEM file opened for reading.
+type SourceFile = BufReader<File>;
+
+/// Opens `path` and detects its format: the buffered file, its length and the format.
+fn open_detected(
+    path: &Path,
+    options: &ReadOptions,
+) -> Result<(SourceFile, u64, DemFormat), DemError> {
+    let file = File::open(path).map_err(|e| read_error(path, e))?;
+    let len = file.metadata().map_err(|e| read_error(path, e))?.len();
+    let mut reader = BufReader::new(file);
+    let head = reader.fill_buf().map_err(|e| read_error(path, e))?.to_vec();
+    let format = detect_format(path, &head, options)?;
+    Ok((reader, len, format))
 }
 
 /// Writes `raster` to `path` atomically, in the format given by the extension:

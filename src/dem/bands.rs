@@ -1,0 +1,172 @@
+//! Reading a DEM by bands of rows in bounded memory ([`RowBands`]).
+//!
+//! A GeoTIFF (stripped, tiled, COG, BigTIFF, any compression and predictor the reader
+//! supports) is decoded chunk by chunk: a band costs its own samples plus at most one row
+//! of strips or tiles, whatever the raster's size. The other formats are small by nature
+//! and are read whole, then sliced.
+
+use std::path::{Path, PathBuf};
+
+use wavemesh_codec::{Georef, Metadata, Raster, SampleType, Samples};
+
+use super::tiff_chunks::ChunkReader;
+use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, SourceFile};
+
+/// Everything [`read_dem`] puts in a [`Raster`] besides the samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DemInfo {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Type of every sample.
+    pub sample_type: SampleType,
+    /// The value marking voids, if any (NaN for float voids).
+    pub nodata: Option<f64>,
+    /// Georeferencing, if the file has any.
+    pub georef: Option<Georef>,
+    /// GDAL metadata: scale, offset, description, units, items.
+    pub metadata: Metadata,
+}
+
+impl DemInfo {
+    /// The description of `raster` (its samples left out).
+    pub fn of(raster: &Raster) -> DemInfo {
+        DemInfo {
+            width: raster.width,
+            height: raster.height,
+            sample_type: raster.sample_type(),
+            nodata: raster.nodata,
+            georef: raster.georef.clone(),
+            metadata: raster.metadata.clone(),
+        }
+    }
+}
+
+/// Where a [`RowBands`] gets its rows.
+enum BandSource {
+    /// A TIFF, decoded chunk by chunk.
+    Chunks(Box<ChunkReader<SourceFile>>),
+    /// A small format, read whole.
+    Whole(Samples),
+}
+
+/// A DEM read by bands of rows: [`RowBands::read_rows`] returns rows `y0..y0 + rows`
+/// exactly as [`read_dem`] would have them. Increasing `y0` is the fast path (a chunk row
+/// that two bands share is decoded once); any `y0` is correct.
+pub struct RowBands {
+    info: DemInfo,
+    source: BandSource,
+    path: PathBuf,
+    options: ReadOptions,
+}
+
+impl RowBands {
+    /// Opens `path` (format detected as [`read_dem`] does). For a GeoTIFF only the tags are
+    /// read; `options.max_samples` and `options.max_memory` bound what a band holds, not
+    /// the raster's size. Other formats are read whole under `options`.
+    pub fn open(path: &Path, options: &ReadOptions) -> Result<RowBands, DemError> {
+        let (reader, _, format) = open_detected(path, options)?;
+        let (info, source) = match format {
+            DemFormat::GeoTiff => {
+                let (info, chunks) =
+                    geotiff::open(reader, path, options).map_err(|e| e.in_file(path))?;
+                (info, BandSource::Chunks(Box::new(chunks)))
+            }
+            _ => {
+                drop(reader);
+                let raster = read_dem(path, options)?;
+                (DemInfo::of(&raster), BandSource::Whole(raster.samples))
+            }
+        };
+        let bands = RowBands {
+            info,
+            source,
+            path: path.to_path_buf(),
+            options: options.clone(),
+        };
+        bands.check_band(1)?;
+        Ok(bands)
+    }
+
+    /// The raster's size, sample type, nodata, georeferencing and metadata.
+    pub fn info(&self) -> &DemInfo {
+        &self.info
+    }
+
+    /// Rows of one row of chunks: a strip's or a tile's height (the raster's height for
+    /// formats read whole). Bands that start and end on multiples of it decode each chunk
+    /// once and keep nothing between calls.
+    pub fn chunk_rows(&self) -> usize {
+        match &self.source {
+            BandSource::Chunks(chunks) => chunks.chunk_rows(),
+            BandSource::Whole(_) => self.info.height,
+        }
+    }
+
+    /// Rows `y0..y0 + rows` as a `width × rows` raster: samples exactly as [`read_dem`]
+    /// gives them, the nodata value set, no georeferencing.
+    pub fn read_rows(&mut self, y0: usize, rows: usize) -> Result<Raster, DemError> {
+        let height = self.info.height;
+        if rows == 0 || y0.checked_add(rows).is_none_or(|end| end > height) {
+            return Err(DemError::RowsOutOfRange { y0, rows, height });
+        }
+        self.check_band(rows)?;
+        let width = self.info.width;
+        let samples = match &mut self.source {
+            BandSource::Chunks(chunks) => chunks
+                .read_rows(y0, rows)
+                .map_err(|e| e.in_file(&self.path))?,
+            BandSource::Whole(samples) => slice(samples, width * y0, width * rows),
+        };
+        let mut band = super::make_raster(width, rows, samples)?;
+        band.nodata = self.info.nodata;
+        Ok(band)
+    }
+
+    /// Checks that a band of `rows` rows plus the rows the source keeps (one chunk row,
+    /// or the whole raster for formats read whole) fits `max_samples` and `max_memory`.
+    fn check_band(&self, rows: usize) -> Result<(), DemError> {
+        let width = self.info.width as u64;
+        let kept = match &self.source {
+            BandSource::Chunks(chunks) => chunks.chunk_row_samples(),
+            BandSource::Whole(samples) => samples.len() as u64,
+        };
+        let band = width.saturating_mul(rows as u64);
+        let sample_type = self.info.sample_type;
+        let work = match sample_type {
+            SampleType::F32 => self.options.work.float,
+            _ => self.options.work.integer,
+        };
+        let bytes = sample_type.bytes() as u128;
+        let samples = u128::from(band) + u128::from(kept);
+        let memory = u128::from(band) * (bytes + u128::from(work)) + u128::from(kept) * bytes;
+        let over = |needed: u128, limit: u64, unit: &'static str| DemError::BandOverLimit {
+            width,
+            rows: rows as u64,
+            kept,
+            needed,
+            limit,
+            unit,
+        };
+        if samples > u128::from(self.options.max_samples) {
+            return Err(over(samples, self.options.max_samples, "samples"));
+        }
+        if memory > u128::from(self.options.max_memory) {
+            return Err(over(memory, self.options.max_memory, "bytes"));
+        }
+        Ok(())
+    }
+}
+
+/// `len` samples from `start` of `samples`, copied.
+fn slice(samples: &Samples, start: usize, len: usize) -> Samples {
+    let range = start..start + len;
+    match samples {
+        Samples::U8(v) => Samples::U8(v[range].to_vec()),
+        Samples::U16(v) => Samples::U16(v[range].to_vec()),
+        Samples::I16(v) => Samples::I16(v[range].to_vec()),
+        Samples::I32(v) => Samples::I32(v[range].to_vec()),
+        Samples::F32(v) => Samples::F32(v[range].to_vec()),
+    }
+}
