@@ -13,4 +13,5 @@ pub mod meshers;
 pub mod metrics;
 pub mod report;
 pub mod synth;
+pub mod tiled_encode;
 pub mod view;

@@ -7,6 +7,7 @@ use wavemesh::byte_source::FileSource;
 use wavemesh::metrics::{self, Distortion};
 use wavemesh_codec::container::physical_offset;
 use wavemesh_codec::tiles::{read_header, TiledLayout};
+use wavemesh_codec::TileGrid;
 use wavemesh_codec::{
     decode as decode_stream, decode_window, encode as encode_raster, DecodeOptions, EncodeOptions,
     Header, Quality, Raster, Window,
@@ -24,10 +25,10 @@ pub const SCHEMA_VERSION: u32 = 1;
 #[derive(Debug, clap::Args)]
 pub struct EncodeArgs {
     /// Input DEM.
-    input: PathBuf,
+    pub(super) input: PathBuf,
     /// Output .ezw file.
     #[arg(short, long)]
-    output: PathBuf,
+    pub(super) output: PathBuf,
     /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53.
     #[arg(long, conflicts_with_all = ["max_error", "precision"])]
     bpp: Option<f64>,
@@ -57,7 +58,7 @@ pub struct EncodeArgs {
     /// Leave out the source's free metadata items (licence, source text...): scale,
     /// offset, description, units and the CRS stay. Saves their bytes at low rates.
     #[arg(long)]
-    no_metadata_items: bool,
+    pub(super) no_metadata_items: bool,
     /// Decode what was encoded and check it against the input before writing: bit-exact
     /// for lossless, every sample within the bound for --max-error. Nothing is written
     /// if the check fails.
@@ -65,9 +66,9 @@ pub struct EncodeArgs {
     verify: bool,
     /// Print one JSON object on stdout instead of text.
     #[arg(long)]
-    json: bool,
+    pub(super) json: bool,
     #[command(flatten)]
-    input_args: InputArgs,
+    pub(super) input_args: InputArgs,
 }
 
 #[derive(Debug, clap::Args)]
@@ -175,37 +176,18 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
     let to_stdout = writes_to_stdout(&args.output, args.json)?;
     warn_about_output_extension(&args.output);
+    if args.tile > 0 && !args.verify && args.reference.is_none() {
+        let mut bands = args.input_args.open_bands(&args.input)?;
+        let info = bands.info();
+        if let Some(grid) = TileGrid::balanced(info.width, info.height, args.tile as usize) {
+            return super::tiled_coding::encode(args, &mut bands, &grid, to_stdout);
+        }
+    }
     let mut raster = args.input_args.read_to_encode(&args.input)?;
     if args.no_metadata_items {
         raster.metadata.items.clear();
     }
-    let samples = (raster.width * raster.height) as f64;
-    let budget = match args.bpp {
-        Some(bpp) if bpp.is_finite() && bpp > 0.0 => Some((bpp * samples / 8.0).floor() as u64),
-        Some(bpp) => {
-            return Err(CliError::Usage(format!(
-                "--bpp must be positive, got {bpp}"
-            )))
-        }
-        None => None,
-    };
-    let quality = match (args.max_error, args.precision) {
-        (Some(e), _) => Quality::MaxError(e),
-        (_, Some(step)) => Quality::Precision(step),
-        _ => Quality::Lossless,
-    };
-    let mut options = EncodeOptions::new(quality, budget);
-    if let Some(w) = args.wavelet {
-        options.wavelet = w.into();
-    }
-    if options.wavelet == wavemesh_codec::Wavelet::Cdf97 && budget.is_none() {
-        return Err(CliError::Usage(
-            "the 9/7 wavelet is lossy: give a rate with --bpp".into(),
-        ));
-    }
-    options.levels = args.levels;
-    options.tile_size = (args.tile > 0).then_some(args.tile);
-    options.threads = args.threads.threads;
+    let options = encode_options(args, raster.len() as u64)?;
     let (encoded, seconds, peak) = with_codec_progress("encoding", Workload::of(&raster), || {
         timed(|| encode_raster(&raster, &options))
     });
@@ -229,7 +211,36 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             Some(compare_rasters(&reference, &decoded.raster, path)?)
         }
     };
-    let header = &encoded.header;
+    let facts = EncodeFacts {
+        header: &encoded.header,
+        header_len: encoded.header_len,
+        bytes: encoded.bytes.len() as u64,
+        seconds,
+        peak,
+    };
+    print_encode_report(args, &facts, to_stdout, verified, distortion);
+    Ok(())
+}
+
+/// What an encode made, for its report.
+pub(super) struct EncodeFacts<'a> {
+    pub(super) header: &'a Header,
+    pub(super) header_len: usize,
+    pub(super) bytes: u64,
+    pub(super) seconds: f64,
+    pub(super) peak: usize,
+}
+
+/// Prints the report of an encode (none when the data went to standard output).
+pub(super) fn print_encode_report(
+    args: &EncodeArgs,
+    facts: &EncodeFacts,
+    to_stdout: bool,
+    verified: Option<Distortion>,
+    distortion: Option<Distortion>,
+) {
+    let header = facts.header;
+    let (seconds, samples) = (facts.seconds, header.sample_count() as f64);
     let report = EncodeReport {
         schema_version: SCHEMA_VERSION,
         command: "encode",
@@ -242,15 +253,15 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
         levels: header.levels,
         mode: header.mode.name(),
         max_error_bound: header.max_error.is_finite().then_some(header.max_error),
-        bytes: encoded.bytes.len() as u64,
-        header_bytes: encoded.header_len as u64,
+        bytes: facts.bytes,
+        header_bytes: facts.header_len as u64,
         mask_bytes: header.mask_len as u64,
-        bpp: metrics::bits_per_sample(encoded.bytes.len() as u64, raster.width, raster.height),
+        bpp: metrics::bits_per_sample(facts.bytes, header.width as usize, header.height as usize),
         passes: header.passes.len(),
         complete: !header.payload_truncated,
         encode_seconds: seconds,
         encode_msamples_per_second: samples / seconds / 1e6,
-        encode_peak_heap_bytes: peak as u64,
+        encode_peak_heap_bytes: facts.peak as u64,
         verified,
         distortion,
     };
@@ -286,7 +297,39 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             print_distortion(d);
         }
     }
-    Ok(())
+}
+
+/// The encoder's options as `args` give them, for a raster of `samples` samples.
+pub(super) fn encode_options(args: &EncodeArgs, samples: u64) -> Result<EncodeOptions, CliError> {
+    let budget = match args.bpp {
+        Some(bpp) if bpp.is_finite() && bpp > 0.0 => {
+            Some((bpp * samples as f64 / 8.0).floor() as u64)
+        }
+        Some(bpp) => {
+            return Err(CliError::Usage(format!(
+                "--bpp must be positive, got {bpp}"
+            )))
+        }
+        None => None,
+    };
+    let quality = match (args.max_error, args.precision) {
+        (Some(e), _) => Quality::MaxError(e),
+        (_, Some(step)) => Quality::Precision(step),
+        _ => Quality::Lossless,
+    };
+    let mut options = EncodeOptions::new(quality, budget);
+    if let Some(w) = args.wavelet {
+        options.wavelet = w.into();
+    }
+    if options.wavelet == wavemesh_codec::Wavelet::Cdf97 && budget.is_none() {
+        return Err(CliError::Usage(
+            "the 9/7 wavelet is lossy: give a rate with --bpp".into(),
+        ));
+    }
+    options.levels = args.levels;
+    options.tile_size = (args.tile > 0).then_some(args.tile);
+    options.threads = args.threads.threads;
+    Ok(options)
 }
 
 /// What `--verify` checked, in words.

@@ -7,6 +7,7 @@ mod meshers;
 mod metadata_report;
 mod report;
 mod synth;
+mod tiled_coding;
 mod tiled_info;
 mod verify;
 mod view;
@@ -153,14 +154,25 @@ impl InputArgs {
         self.read_for(path, ENCODE_WORK)
     }
 
-    fn read_for(&self, path: &Path, work: WorkMemory) -> Result<Raster, CliError> {
-        let options = ReadOptions {
+    /// Opens a DEM to be encoded band by band: the limits bound a band, and the
+    /// encoder's memory counts per band sample.
+    fn open_bands(&self, path: &Path) -> Result<dem::RowBands, CliError> {
+        dem::RowBands::open(path, &self.read_options(ENCODE_WORK))
+            .map_err(|e| read_failure(path, e))
+    }
+
+    fn read_options(&self, work: WorkMemory) -> ReadOptions {
+        ReadOptions {
             terrain_rgb: self.terrain_rgb,
             max_samples: self.limit_args.max_samples,
             max_memory: self.limit_args.max_memory,
             work,
             accept_lossy: self.accept_lossy_input,
-        };
+        }
+    }
+
+    fn read_for(&self, path: &Path, work: WorkMemory) -> Result<Raster, CliError> {
+        let options = self.read_options(work);
         let raster = dem::read_dem(path, &options).map_err(|e| read_failure(path, e))?;
         warn_if_hgt_lost_its_place(path, &raster);
         Ok(raster)

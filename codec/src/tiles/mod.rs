@@ -222,7 +222,7 @@ fn weakest_mode(tiles: &[TileSummary]) -> Mode {
 }
 
 /// Encodes `raster` as a tiled file on `grid` (see [`crate::encode`], which calls this
-/// for rasters larger than a tile). With a byte budget every tile is coded completely,
+/// for rasters larger than a tile). With a byte budget every tile is coded up to a cap,
 /// then cut where [`allocate`] says.
 pub(crate) fn encode(
     raster: &Raster,
@@ -230,33 +230,21 @@ pub(crate) fn encode(
     grid: &TileGrid,
 ) -> Result<Encoded, CodecError> {
     let workers = Workers::new(options.threads)?;
-    let samples = raster.len() as u64;
     let mut tiles: Vec<EncodedTile> = Vec::with_capacity(grid.count());
     for row in 0..grid.rows() {
-        let done = workers.map(grid.row(row), |k| {
-            let window = grid.tile(k);
-            let part = raster.crop(window.x, window.y, window.width, window.height);
-            encode_tile(
-                &part,
-                options,
-                tile_cap(options.budget_bytes, &window, samples),
-            )
-        });
-        for tile in done {
-            tiles.push(tile?);
-        }
-        let coded: u64 = grid.row(0).len() as u64 * (row as u64 + 1);
-        crate::progress::report(
-            crate::progress::Stage::Tiles,
-            samples * coded / grid.count() as u64,
-            samples,
-        );
+        let y = row * grid.tile_height;
+        let height = grid.tile_height.min(grid.height - y);
+        let band = raster.crop(0, y, raster.width, height);
+        tiles.extend(encode_row(&workers, &band, grid, row, options)?);
+        let done = (y + height) as u64 * raster.width as u64;
+        crate::progress::report(crate::progress::Stage::Tiles, done, raster.len() as u64);
     }
+    let info = RasterInfo::of(raster);
     if let Some(budget) = options.budget_bytes {
-        tiles = cut_to_budget(tiles, &RasterInfo::of(raster), grid, budget)?;
+        tiles = cut_to_budget(tiles, &info, grid, budget)?;
     }
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-    let mut bytes = tiled_head(&RasterInfo::of(raster), grid, &summaries);
+    let mut bytes = tiled_head(&info, grid, &summaries);
     let header_len = Header::declared_len(&bytes).expect("a header we wrote");
     for tile in &tiles {
         bytes.extend_from_slice(&tile.bytes);
@@ -270,6 +258,40 @@ pub(crate) fn encode(
     })
 }
 
+/// Encodes the tiles of row `row` of `grid` from `band`, the raster's rows of that tile
+/// row, on `options.threads` threads (0: one per core), in grid order. With a byte
+/// budget each tile is coded up to its cap (see [`cut_to_budget`] for the cut).
+pub fn encode_band(
+    band: &Raster,
+    grid: &TileGrid,
+    row: usize,
+    options: &EncodeOptions,
+) -> Result<Vec<EncodedTile>, CodecError> {
+    encode_row(&Workers::new(options.threads)?, band, grid, row, options)
+}
+
+fn encode_row(
+    workers: &Workers,
+    band: &Raster,
+    grid: &TileGrid,
+    row: usize,
+    options: &EncodeOptions,
+) -> Result<Vec<EncodedTile>, CodecError> {
+    let samples = (grid.width * grid.height) as u64;
+    workers
+        .map(grid.row(row), |k| {
+            let window = grid.tile(k);
+            let part = band.crop(window.x, 0, window.width, window.height);
+            encode_tile(
+                &part,
+                options,
+                tile_cap(options.budget_bytes, &window, samples),
+            )
+        })
+        .into_iter()
+        .collect()
+}
+
 /// Bytes a tile is coded to under a file budget: four times its share by area (and
 /// 4 KiB), so no tile spends time on planes the allocation would never give it bytes
 /// for, and a tile four times more detailed than the average still gets what it needs.
@@ -281,7 +303,7 @@ fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
 /// Cuts tiles so the whole file fits `budget` bytes. The index shrinks with the
 /// cut (fewer passes to list), so the header and index are first counted without
 /// passes, then the excess of each try, if any, is taken off the tiles' share.
-fn cut_to_budget(
+pub fn cut_to_budget(
     tiles: Vec<EncodedTile>,
     info: &RasterInfo,
     grid: &TileGrid,

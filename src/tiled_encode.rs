@@ -1,0 +1,107 @@
+//! Encoding a DEM larger than memory: read one tile row of samples at a time
+//! ([`RowBands`]), code its tiles on every core, and keep only their (compressed)
+//! streams, spooled to a temporary file; the header and index go first in the output,
+//! the tiles after them. The bytes are those of an in-memory encode of the same raster.
+
+use std::fs::File;
+use std::io::{self, Seek, SeekFrom, Write};
+use std::path::Path;
+
+use thiserror::Error;
+use wavemesh_codec::tiles::{
+    cut_to_budget, encode_band, tiled_head, EncodedTile, RasterInfo, TileSummary,
+};
+use wavemesh_codec::{CodecError, EncodeOptions, TileGrid};
+
+use crate::dem::{DemError, RowBands};
+
+/// Why a streaming encode failed.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum TiledEncodeError {
+    /// Reading the DEM failed.
+    #[error(transparent)]
+    Read(#[from] DemError),
+    /// The coder refused.
+    #[error(transparent)]
+    Encode(#[from] CodecError),
+    /// The spool file or the output failed.
+    #[error("{0}")]
+    Write(#[from] io::Error),
+}
+
+/// What a streaming encode wrote.
+#[derive(Debug, Clone)]
+pub struct TiledEncoded {
+    /// Bytes of the output file.
+    pub bytes: u64,
+    /// Bytes of its header and index.
+    pub head_bytes: u64,
+    /// The tiles' summaries, in grid order.
+    pub tiles: Vec<TileSummary>,
+}
+
+/// Encodes the raster `bands` reads (described by `info`, see [`raster_info`]) as a
+/// tiled file on `grid` into `output` (written atomically), holding one tile row of
+/// samples at a time. Without a byte budget the
+/// tiles' streams wait in a temporary file; with one they are kept in memory (each
+/// coded up to about four times its share of the budget) until the budget is shared.
+pub fn encode_tiled(
+    bands: &mut RowBands,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    options: &EncodeOptions,
+    output: &Path,
+) -> Result<TiledEncoded, TiledEncodeError> {
+    let mut spool = tempfile::tempfile()?;
+    let mut kept: Vec<EncodedTile> = Vec::new();
+    let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
+    for row in 0..grid.rows() {
+        let y = row * grid.tile_height;
+        let band = bands.read_rows(y, grid.tile_height.min(grid.height - y))?;
+        for tile in encode_band(&band, grid, row, options)? {
+            summaries.push(tile.summary.clone());
+            if options.budget_bytes.is_some() {
+                kept.push(tile);
+            } else {
+                spool.write_all(&tile.bytes)?;
+            }
+        }
+    }
+    if let Some(budget) = options.budget_bytes {
+        let cut = cut_to_budget(kept, info, grid, budget)?;
+        summaries = cut.iter().map(|t| t.summary.clone()).collect();
+        for tile in &cut {
+            spool.write_all(&tile.bytes)?;
+        }
+    }
+    let head = tiled_head(info, grid, &summaries);
+    let tiles_len = spool.stream_position()?;
+    spool.seek(SeekFrom::Start(0))?;
+    crate::atomic::write_atomic(output, |w| copy_out(&head, &mut spool, w))?;
+    Ok(TiledEncoded {
+        bytes: head.len() as u64 + tiles_len,
+        head_bytes: head.len() as u64,
+        tiles: summaries,
+    })
+}
+
+/// Writes the header and index, then the spooled tiles.
+fn copy_out(head: &[u8], spool: &mut File, out: &mut dyn Write) -> io::Result<()> {
+    out.write_all(head)?;
+    io::copy(spool, out)?;
+    Ok(())
+}
+
+/// The codec's description of the raster `bands` reads.
+pub fn raster_info(bands: &RowBands) -> RasterInfo {
+    let info = bands.info();
+    RasterInfo {
+        width: info.width,
+        height: info.height,
+        sample_type: info.sample_type,
+        nodata: info.nodata,
+        georef: info.georef.clone(),
+        metadata: info.metadata.clone(),
+    }
+}

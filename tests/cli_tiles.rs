@@ -1,0 +1,245 @@
+//! Tiled `.ezw` files through the command line: streaming encode (same bytes as in
+//! memory, whatever the threads), windows and boxes reading only their tiles, budgets,
+//! info and verify naming damaged tiles, and the memory of a 4096² encode.
+
+mod support;
+
+use std::path::Path;
+
+use support::{json, s, scratch, wavemesh};
+use wavemesh::dem::{read_dem, ReadOptions};
+
+fn read(path: &Path) -> wavemesh_codec::Raster {
+    read_dem(path, &ReadOptions::default()).unwrap()
+}
+
+/// A fractal GeoTIFF of `w × h` in `dir`.
+fn synth(dir: &Path, w: u32, h: u32) -> std::path::PathBuf {
+    let path = dir.join(format!("synth-{w}x{h}.tif"));
+    json(&[
+        "synth",
+        s(&path),
+        "--size",
+        &format!("{w}x{h}"),
+        "--seed",
+        "7",
+        "--json",
+    ]);
+    path
+}
+
+#[test]
+fn streaming_encode_is_lossless_and_independent_of_threads() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 1300, 700);
+    let one = dir.path().join("one.ezw");
+    let two = dir.path().join("two.ezw");
+    let memory = dir.path().join("memory.ezw");
+    let report = json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&one),
+        "--tile",
+        "512",
+        "--threads",
+        "1",
+        "--json",
+    ]);
+    assert_eq!(report["mode"], "lossless");
+    json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&two),
+        "--tile",
+        "512",
+        "--threads",
+        "2",
+        "--json",
+    ]);
+    // --verify encodes in memory: the same bytes again.
+    json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&memory),
+        "--tile",
+        "512",
+        "--verify",
+        "--json",
+    ]);
+    let bytes = std::fs::read(&one).unwrap();
+    assert_eq!(
+        bytes,
+        std::fs::read(&two).unwrap(),
+        "threads changed the bytes"
+    );
+    assert_eq!(
+        bytes,
+        std::fs::read(&memory).unwrap(),
+        "streaming differs from memory"
+    );
+    let info = json(&["info", s(&one), "--json"]);
+    // 1300 = 3 tiles of 434 (the last 432); 700 = 2 of 350.
+    assert_eq!(
+        (info["tiles"].as_u64(), info["tile_width"].as_u64()),
+        (Some(6), Some(434))
+    );
+    let out = dir.path().join("out.tif");
+    json(&["decode", s(&one), "-o", s(&out), "--json"]);
+    assert_eq!(read(&out).samples, read(&tif).samples);
+}
+
+#[test]
+fn windows_and_boxes_read_only_their_tiles() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 1024, 1024);
+    let ezw = dir.path().join("w.ezw");
+    json(&["encode", s(&tif), "-o", s(&ezw), "--tile", "256", "--json"]);
+    let whole = read(&tif);
+    let out = dir.path().join("window.tif");
+    let report = json(&[
+        "decode",
+        s(&ezw),
+        "-o",
+        s(&out),
+        "--window",
+        "300,520,100,60",
+        "--json",
+    ]);
+    assert_eq!(read(&out).samples, whole.crop(300, 520, 100, 60).samples);
+    let (read_bytes, file) = (
+        report["bytes_read"].as_u64().unwrap(),
+        report["file_bytes"].as_u64().unwrap(),
+    );
+    assert!(
+        read_bytes * 4 < file,
+        "a one-tile window read {read_bytes} of {file} bytes"
+    );
+    // The same window as a box in the CRS (synth: UTM, 10 m pixels).
+    let gt = whole.georef.as_ref().unwrap().geotransform;
+    let (minx, maxy) = (gt[0] + 300.0 * gt[1], gt[3] + 520.0 * gt[5]);
+    let bbox = format!(
+        "{},{},{},{}",
+        minx + 1.0,
+        maxy + 60.0 * gt[5] + 1.0,
+        minx + 1000.0 - 1.0,
+        maxy - 1.0
+    );
+    let boxed = dir.path().join("box.tif");
+    json(&[
+        "decode",
+        s(&ezw),
+        "-o",
+        s(&boxed),
+        "--bbox",
+        &bbox,
+        "--json",
+    ]);
+    let boxed = read(&boxed);
+    assert_eq!(boxed.samples, whole.crop(300, 520, 100, 60).samples);
+    assert_eq!(boxed.georef.unwrap().geotransform[0], minx);
+    // A window outside the raster is a usage error.
+    let bad = wavemesh(&[
+        "decode",
+        s(&ezw),
+        "-o",
+        s(&out),
+        "--window",
+        "1000,0,100,10",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+#[test]
+fn budgets_and_damage_on_tiled_files() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 900, 600);
+    let ezw = dir.path().join("b.ezw");
+    let lossy = json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&ezw),
+        "--tile",
+        "256",
+        "--bpp",
+        "0.5",
+        "--json",
+    ]);
+    assert!(lossy["bytes"].as_u64().unwrap() <= (0.5 * 900.0 * 600.0 / 8.0) as u64);
+    let lossless = dir.path().join("l.ezw");
+    json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&lossless),
+        "--tile",
+        "256",
+        "--json",
+    ]);
+    let out = dir.path().join("p.tif");
+    let coarse = json(&[
+        "decode",
+        s(&lossless),
+        "-o",
+        s(&out),
+        "--bpp",
+        "0.5",
+        "--reference",
+        s(&tif),
+        "--json",
+    ]);
+    let fine = json(&[
+        "decode",
+        s(&lossless),
+        "-o",
+        s(&out),
+        "--bpp",
+        "2",
+        "--reference",
+        s(&tif),
+        "--json",
+    ]);
+    let rmse = |r: &serde_json::Value| r["distortion"]["rmse"].as_f64().unwrap();
+    assert!(rmse(&fine) < rmse(&coarse));
+    assert!(coarse["bytes_read"].as_u64().unwrap() <= (0.5 * 900.0 * 600.0 / 8.0) as u64 + 65536);
+    // Damage inside one tile: verify names it, decode warns and decodes the others.
+    let mut bytes = std::fs::read(&lossless).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 0x20;
+    let damaged = dir.path().join("d.ezw");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let verify = wavemesh(&["verify", s(&damaged)]);
+    assert_eq!(verify.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&verify.stdout).contains("DAMAGED"));
+    let decode = wavemesh(&["decode", s(&damaged), "-o", s(&out)]);
+    assert!(decode.status.success());
+    assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+}
+
+#[test]
+fn a_4096_square_encode_holds_a_row_of_tiles_not_the_raster() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 4096, 4096);
+    let ezw = dir.path().join("big.ezw");
+    let report = json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&ezw),
+        "--tile",
+        "512",
+        "--threads",
+        "1",
+        "--json",
+    ]);
+    let peak = report["encode_peak_heap_bytes"].as_u64().unwrap();
+    let raster = 4096u64 * 4096 * 2;
+    // One band of 512 rows (4 MiB) and one tile's coder (about 20 bytes a sample).
+    assert!(
+        peak < raster / 2,
+        "peak heap {peak} for a {raster}-byte raster"
+    );
+}
