@@ -1,6 +1,6 @@
 //! Tiled `.ezw` files through the command line: streaming encode (same bytes as in
 //! memory, whatever the threads), windows and boxes reading only their tiles, budgets,
-//! info and verify naming damaged tiles, and the memory of a 4096² encode.
+//! info and verify naming damaged tiles, and the memory of a 4096² encode and decode.
 
 mod support;
 

@@ -451,17 +451,38 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         threads: args.threads.threads,
     };
     check_mesh_args(args, &header, samples)?;
+    // A whole tiled file to a GeoTIFF is decoded and written one tile row at a time.
+    let streamed = layout.as_ref().filter(|_| {
+        window.is_none()
+            && args.mesh.is_none()
+            && args.reference.is_none()
+            && !to_stdout
+            && wavemesh::dem::is_geotiff_path(&args.output)
+    });
     let (decoded, seconds, peak) = with_codec_progress(
         "decoding",
         Workload::new(samples, header.sample_type),
-        || timed(|| decode_window(&mut source, window, &options)),
+        || {
+            timed(|| match streamed {
+                Some(layout) => super::tiled_coding::decode_rows(
+                    (&args.input, &args.output),
+                    &mut source,
+                    layout,
+                    &options,
+                )
+                .map(|outcome| (outcome, None)),
+                None => decode_window(&mut source, window, &options)
+                    .map(|d| (DecodeOutcome::of(&d), Some(d)))
+                    .map_err(stream_error),
+            })
+        },
     );
-    let decoded = decoded.map_err(stream_error)?;
+    let (outcome, decoded) = decoded?;
     let bytes_read = match &layout {
         Some(_) => source.bytes_read(),
         None => max_bytes.map_or(source.len(), |m| m.min(source.len())),
     };
-    if let Some(d) = decoded.damage {
+    if let Some(d) = outcome.damage {
         let what = match d.tile {
             Some(tile) => format!("tile {tile} ({})", d.section),
             None => d.section.to_string(),
@@ -473,53 +494,34 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             if d.tile.is_some() { " and the other tiles" } else { "" },
         );
     }
-    if args.mesh.is_some() {
-        args.mesh_options
-            .check_raster(&decoded.raster, &args.input)?;
-    }
-    wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
-    let reference = match &args.reference {
-        None => None,
-        Some(path) => Some(args.input_args.read(path)?),
+    let (distortion, mesh) = match &decoded {
+        Some(decoded) => write_decoded(args, decoded)?,
+        None => (None, None),
     };
-    let distortion = match (&args.reference, &reference) {
-        (Some(path), Some(reference)) => Some(compare_rasters(reference, &decoded.raster, path)?),
-        _ => None,
-    };
-    let mesh = match &args.mesh {
-        Some(path) => Some(mesh_decoded(
-            &decoded,
-            &args.mesh_options,
-            path,
-            reference.as_ref(),
-            args.input_args.max_memory(),
-        )?),
-        None => None,
-    };
-    let out_samples = decoded.raster.len() as u64;
+    let out_samples = (outcome.width * outcome.height) as u64;
     let raster_bytes = out_samples * header.sample_type.bytes() as u64;
     let report = DecodeReport {
         schema_version: SCHEMA_VERSION,
         command: "decode",
         input: &args.input,
         output: &args.output,
-        width: decoded.raster.width as u32,
-        height: decoded.raster.height as u32,
+        width: outcome.width as u32,
+        height: outcome.height as u32,
         window: window.map(|w| [w.x, w.y, w.width, w.height]),
         tiles: layout.as_ref().map(|l| l.grid.count()),
         file_bytes: source.len(),
         bytes_read,
-        bytes_used: decoded.bytes_used,
+        bytes_used: outcome.bytes_used,
         bpp: metrics::bits_per_sample(bytes_read, header.width as usize, header.height as usize),
-        passes_decoded: decoded.passes_decoded,
+        passes_decoded: outcome.passes_decoded,
         passes_total: header.top_plane.map_or(0, |t| t as usize + 1),
-        complete: decoded.complete,
+        complete: outcome.complete,
         decode_seconds: seconds,
         decode_msamples_per_second: out_samples as f64 / seconds / 1e6,
         decode_peak_heap_bytes: peak as u64,
         raster_bytes,
         peak_heap_per_raster_byte: peak as f64 / raster_bytes as f64,
-        damage: decoded.damage.map(|d| DamageReport {
+        damage: outcome.damage.map(|d| DamageReport {
             section: d.section,
             offset: d.offset,
             tile: d.tile,
@@ -553,6 +555,61 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// What a decode produced, for its report.
+pub(super) struct DecodeOutcome {
+    pub(super) width: usize,
+    pub(super) height: usize,
+    pub(super) passes_decoded: u32,
+    pub(super) complete: bool,
+    pub(super) bytes_used: u64,
+    pub(super) damage: Option<wavemesh_codec::pipeline::Damage>,
+}
+
+impl DecodeOutcome {
+    fn of(decoded: &wavemesh_codec::Decoded) -> DecodeOutcome {
+        DecodeOutcome {
+            width: decoded.raster.width,
+            height: decoded.raster.height,
+            passes_decoded: decoded.passes_decoded,
+            complete: decoded.complete,
+            bytes_used: decoded.bytes_used,
+            damage: decoded.damage,
+        }
+    }
+}
+
+/// Writes a decode held in memory, then measures it against `--reference` and meshes
+/// it with `--mesh` when asked.
+fn write_decoded(
+    args: &DecodeArgs,
+    decoded: &wavemesh_codec::Decoded,
+) -> Result<(Option<Distortion>, Option<MeshReport>), CliError> {
+    if args.mesh.is_some() {
+        args.mesh_options
+            .check_raster(&decoded.raster, &args.input)?;
+    }
+    wavemesh::dem::write_dem(&args.output, &decoded.raster).map_err(CliError::DemOutput)?;
+    let reference = match &args.reference {
+        None => None,
+        Some(path) => Some(args.input_args.read(path)?),
+    };
+    let distortion = match (&args.reference, &reference) {
+        (Some(path), Some(reference)) => Some(compare_rasters(reference, &decoded.raster, path)?),
+        _ => None,
+    };
+    let mesh = match &args.mesh {
+        Some(path) => Some(mesh_decoded(
+            decoded,
+            &args.mesh_options,
+            path,
+            reference.as_ref(),
+            args.input_args.max_memory(),
+        )?),
+        None => None,
+    };
+    Ok((distortion, mesh))
 }
 
 /// The window `--window` or `--bbox` asks for, if any.

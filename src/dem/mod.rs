@@ -363,6 +363,11 @@ pub fn write_dem(path: &Path, raster: &Raster) -> Result<(), DemError> {
     write_by_extension(path, raster).map_err(|e| e.in_file(path))
 }
 
+/// Whether [`write_dem`] writes `path` as a GeoTIFF (by its extension).
+pub fn is_geotiff_path(path: &Path) -> bool {
+    matches!(output_extension(path).as_str(), "tif" | "tiff")
+}
+
 /// [`write_dem`] without the file name in the error messages.
 fn write_by_extension(path: &Path, raster: &Raster) -> Result<(), DemError> {
     check_raster(raster)?;
