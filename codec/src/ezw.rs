@@ -202,40 +202,65 @@ impl ContextChoice {
     };
 }
 
+/// Which context models a stream is coded with (the header's "coder 2" flag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Coder {
+    /// The first models: neighbour and parent *significance* only.
+    V1,
+    /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent
+    /// (what every new stream is coded with).
+    #[default]
+    V2,
+}
+
 /// The adaptive models, grouped by decision.
 #[derive(Debug, Clone)]
 pub struct Contexts {
+    coder: Coder,
     choice: ContextChoice,
-    /// Significance: class (4) × horizontal+vertical significant neighbours (3)
-    /// × any diagonal neighbour significant (2) × parent significant (2).
+    /// Significance. V1: class (4) × horizontal+vertical significant neighbours (3)
+    /// × any diagonal neighbour significant (2) × parent significant (2). V2: class (4)
+    /// × neighbour activity (8) × parent activity (3).
     significance: Vec<BitModel>,
-    /// Zerotree root vs isolated zero: class (4) × neighbours (3) × parent significant (2).
+    /// Zerotree root vs isolated zero. V1: class (4) × neighbours (3) × parent
+    /// significant (2). V2: as significance.
     zerotree: Vec<BitModel>,
     /// Sign: orientation (4) × left neighbour (3: none, +, −) × upper neighbour (3).
     sign: Vec<BitModel>,
     /// Refinement: age of the coefficient's significance (2: first refinement, second;
-    /// older ones are coded raw) × busy neighbourhood (2) × class (4).
+    /// older ones are coded raw) × neighbourhood (V1: busy or not, 2; V2: activity, 4)
+    /// × class (4).
     refinement: Vec<BitModel>,
 }
 
 impl Default for Contexts {
     fn default() -> Self {
-        Contexts::with_choice(ContextChoice::ALL)
+        Contexts::new(Coder::default(), ContextChoice::ALL)
     }
 }
 
 impl Contexts {
-    /// Fresh models selected by `choice`.
-    pub fn with_choice(choice: ContextChoice) -> Self {
+    /// Fresh models of `coder` selected by `choice`.
+    pub fn new(coder: Coder, choice: ContextChoice) -> Self {
+        let (activity, busy) = match coder {
+            Coder::V1 => (3 * 2 * 2, 2),
+            Coder::V2 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
+        };
         Contexts {
+            coder,
             choice,
-            significance: vec![BitModel::new(); 4 * 3 * 2 * 2],
-            zerotree: vec![BitModel::new(); 4 * 3 * 2],
-            sign: vec![BitModel::new(); 4 * 3 * 3],
-            refinement: vec![BitModel::new(); 2 * 2 * 4],
+            significance: vec![BitModel::new(); 4 * activity],
+            zerotree: vec![BitModel::new(); 4 * activity],
+            sign: vec![BitModel::new(); 4 * 3 * 3 * 3],
+            refinement: vec![BitModel::new(); 2 * busy * 4],
         }
     }
 }
+
+/// Levels of the quantised neighbour activity of coder 2.
+const ACTIVITY_LEVELS: usize = 8;
+/// Levels of the quantised parent magnitude of coder 2.
+const PARENT_LEVELS: usize = 3;
 
 /// What differs between encoding and decoding a scan.
 trait Side {
@@ -261,6 +286,8 @@ trait Side {
     /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
     /// plane `p` is refined).
     fn known_above(&self, i: usize, p: u32) -> u32;
+    /// The magnitude of significant coefficient `i`, known down to its plane `low`.
+    fn known_magnitude(&self, i: usize, low: u32) -> u32;
 }
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
@@ -366,6 +393,29 @@ struct ParentBand {
     width: usize,
     height: usize,
     halve: bool,
+    /// The parent band's own plane in this pass.
+    plane: u32,
+}
+
+/// One row of parents: where its first coefficient is in the bitmaps, the flags and the
+/// coefficients.
+#[derive(Clone, Copy)]
+struct ParentRow {
+    bit: usize,
+    flag: usize,
+    index: usize,
+    width: usize,
+    halve: bool,
+    plane: u32,
+}
+
+impl ParentRow {
+    /// Column of the parent of column `x`, if the row has one there.
+    #[inline]
+    fn column(&self, x: usize) -> Option<usize> {
+        let px = if self.halve { x >> 1 } else { x };
+        (px < self.width).then_some(px)
+    }
 }
 
 /// Outcome of one scan.
@@ -383,7 +433,6 @@ fn scan_pass<S: Side>(
     n: u32,
 ) -> ScanEnd {
     let w = layout.width;
-    let stride = grid.stride;
     // Dominant scan, 64 coefficients of a band row at a time: the bitmaps give the
     // coefficients that are neither significant nor covered by their parent's zerotree,
     // and only those get decisions.
@@ -408,22 +457,21 @@ fn scan_pass<S: Side>(
             }
             continue;
         };
-        let parent = band
-            .parent
-            .filter(|&pb| layout.bands[pb].plane_in_pass(n).is_some())
-            .map(|pb| {
-                let ps = layout.bands[pb].sub;
-                ParentBand {
-                    x0: ps.x0,
-                    y0: ps.y0,
-                    width: ps.width,
-                    height: ps.height,
-                    halve: band.halve,
-                }
-            });
+        let parent = band.parent.and_then(|pb| {
+            let ps = layout.bands[pb].sub;
+            Some(ParentBand {
+                x0: ps.x0,
+                y0: ps.y0,
+                width: ps.width,
+                height: ps.height,
+                halve: band.halve,
+                plane: layout.bands[pb].plane_in_pass(n)?,
+            })
+        });
         let has_children = band.has_children;
         let choice = contexts.choice;
         let class = band.class * choice.subband_class as usize;
+
         let orientation = band.orientation;
         for y in 0..sub.height {
             let gy = sub.y0 + y;
@@ -433,17 +481,24 @@ fn scan_pass<S: Side>(
             // Bit index of the parent row's first coefficient, if the row has parents.
             let parent_row = parent.as_ref().and_then(|pb| {
                 let py = if pb.halve { y / 2 } else { y };
-                (py < pb.height).then(|| (grid.bit(pb.x0, pb.y0 + py), pb.width, pb.halve))
+                (py < pb.height).then(|| ParentRow {
+                    bit: grid.bit(pb.x0, pb.y0 + py),
+                    flag: grid.at(pb.x0, pb.y0 + py),
+                    index: (pb.y0 + py) * w + pb.x0,
+                    width: pb.width,
+                    halve: pb.halve,
+                    plane: pb.plane,
+                })
             });
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
-                    Some((start, pw, true)) if chunk / 2 < pw => {
-                        let plen = (pw - chunk / 2).min(32);
-                        spread_bits(extract_bits(&grid.zt_bits, start + chunk / 2, plen) as u32)
+                    Some(pr) if pr.halve && chunk / 2 < pr.width => {
+                        let plen = (pr.width - chunk / 2).min(32);
+                        spread_bits(extract_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
                     }
-                    Some((start, pw, false)) if chunk < pw => {
-                        extract_bits(&grid.zt_bits, start + chunk, (pw - chunk).min(64))
+                    Some(pr) if !pr.halve && chunk < pr.width => {
+                        extract_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
                     }
                     _ => 0,
                 };
@@ -464,32 +519,16 @@ fn scan_pass<S: Side>(
                     let x = chunk + k;
                     let fi = row_f + x;
                     let i = row_i + x;
-                    let parent_sig = match parent_row {
-                        Some((start, pw, halve)) => {
-                            let px = if halve { x >> 1 } else { x };
-                            (px < pw
-                                && grid.sig_bits[(start + px) / 64] >> ((start + px) % 64) & 1 != 0)
-                                as usize
-                        }
-                        None => 0,
-                    };
-                    let (hv, diag) = grid.neighbourhood(fi);
-                    let (hv, diag) = (
-                        hv * choice.neighbours as usize,
-                        diag * choice.neighbours as usize,
-                    );
-                    let parent_sig = parent_sig * choice.parent as usize;
-                    let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
+                    let (ctx, zctx) =
+                        dominant_contexts(contexts, grid, side, (fi, i, x), class, p, parent_row);
                     let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
                     if side.stopped() {
                         deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     if is_significant {
-                        let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
-                        let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
-                        let signs = choice.neighbour_signs as usize;
-                        let sctx = (orientation * 3 + left * signs) * 3 + up * signs;
+                        let sctx =
+                            sign_context(contexts, grid, side, (fi, i, x), orientation, parent_row);
                         let negative = side.sign(i, &mut contexts.sign[sctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -500,7 +539,6 @@ fn scan_pass<S: Side>(
                         let bit = row_bit + x;
                         grid.sig_bits[bit / 64] |= 1 << (bit % 64);
                     } else if has_children {
-                        let zctx = (class * 3 + hv) * 2 + parent_sig;
                         let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -545,10 +583,16 @@ fn scan_pass<S: Side>(
                         2 | 3 => 1,
                         _ => 2,
                     } * choice.refinement_age as usize;
-                    let (hv, diag) = grid.neighbourhood(fi);
-                    let busy = (hv + diag > 1) as usize * choice.neighbours as usize;
-                    let rctx =
-                        ((age & 1) * 2 + busy) * 4 + band.class * choice.subband_class as usize;
+                    let busy = match contexts.coder {
+                        Coder::V1 => {
+                            let (hv, diag) = grid.neighbourhood(fi);
+                            (hv + diag > 1) as usize
+                        }
+                        Coder::V2 => refinement_activity(grid, side, fi, i, p),
+                    } * choice.neighbours as usize;
+                    let levels = contexts.refinement.len() / 8;
+                    let rctx = ((age & 1) * levels + busy) * 4
+                        + band.class * choice.subband_class as usize;
                     // Bits of magnitudes known to 3+ planes are all but random: raw.
                     let bit = if age == 2 {
                         side.raw_refinement(i, p)
@@ -567,6 +611,46 @@ fn scan_pass<S: Side>(
     ScanEnd::Finished
 }
 
+/// The sign model index of coefficient `at` (flag index, coefficient index, column in
+/// its band). V1: the left and upper neighbours' signs; V2: the horizontal and vertical
+/// neighbours' sign balance and the parent's sign.
+#[inline]
+fn sign_context<S: Side>(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    side: &S,
+    (fi, i, x): (usize, usize, usize),
+    orientation: usize,
+    parent_row: Option<ParentRow>,
+) -> usize {
+    let s = grid.stride;
+    let w = s - 2;
+    let state = |df: usize, j: usize| sign_state(grid.flags[df], side, j);
+    let signs = contexts.choice.neighbour_signs as usize;
+    let left = state(fi - 1, i.wrapping_sub(1));
+    let up = state(fi - s, i.wrapping_sub(w));
+    match contexts.coder {
+        Coder::V1 => (orientation * 3 + left * signs) * 3 + up * signs,
+        Coder::V2 => {
+            let balance = |a: usize, b: usize| {
+                let v = SIGN_VALUE[a] + SIGN_VALUE[b];
+                (v.signum() + 1) as usize
+            };
+            let h = balance(left, state(fi + 1, i + 1));
+            let v = balance(up, state(fi + s, i + w));
+            let parent = parent_row
+                .and_then(|pr| Some((pr, pr.column(x)?)))
+                .map_or(0, |(pr, px)| {
+                    state(pr.flag + px, pr.index + px) * contexts.choice.parent as usize
+                });
+            ((orientation * 3 + h * signs) * 3 + v * signs) * 3 + parent
+        }
+    }
+}
+
+/// Sign states (0 none, 1 +, 2 −) as numbers.
+const SIGN_VALUE: [i32; 3] = [0, 1, -1];
+
 /// Sign state of a neighbour for sign contexts: 0 = not significant (or outside the
 /// array: border flags are zero, so `j` is then never used), 1 = +, 2 = −.
 #[inline]
@@ -578,6 +662,96 @@ fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
     } else {
         1
     }
+}
+
+/// The significance and zerotree model indices of insignificant coefficient `at`
+/// (flag index, coefficient index, column in its band) at own plane `p`.
+#[inline]
+fn dominant_contexts<S: Side>(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    side: &S,
+    (fi, i, x): (usize, usize, usize),
+    class: usize,
+    p: u32,
+    parent_row: Option<ParentRow>,
+) -> (usize, usize) {
+    let choice = contexts.choice;
+    let parent_flags = parent_row
+        .and_then(|pr| Some((pr, pr.column(x)?)))
+        .map(|(pr, px)| (pr, px, grid.flags[pr.flag + px]))
+        .filter(|&(_, _, f)| f & SIG != 0 && choice.parent);
+    match contexts.coder {
+        Coder::V1 => {
+            let parent_sig = parent_flags.is_some() as usize;
+            let (hv, diag) = grid.neighbourhood(fi);
+            let (hv, diag) = (
+                hv * choice.neighbours as usize,
+                diag * choice.neighbours as usize,
+            );
+            (
+                ((class * 3 + hv) * 2 + diag) * 2 + parent_sig,
+                (class * 3 + hv) * 2 + parent_sig,
+            )
+        }
+        Coder::V2 => {
+            let activity = if choice.neighbours {
+                log_level(neighbour_sum(grid, side, fi, i) >> p, ACTIVITY_LEVELS)
+            } else {
+                0
+            };
+            let parent = parent_flags.map_or(0, |(pr, px, f)| {
+                let known = side.known_magnitude(pr.index + px, (f >> PLANE_SHIFT) as u32);
+                1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
+            });
+            let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
+            (ctx, ctx)
+        }
+    }
+}
+
+/// Known magnitudes of the 8 neighbours of flag index `fi` (coefficient `i`), the
+/// horizontal and vertical ones counted twice.
+#[inline]
+fn neighbour_sum<S: Side>(grid: &FlagGrid, side: &S, fi: usize, i: usize) -> u64 {
+    let s = grid.stride as isize;
+    // The grid's rows are the coefficient rows with a border column on each side.
+    let w = s - 2;
+    let mut sum = 0u64;
+    for (df, di, weight) in [
+        (-1, -1, 2),
+        (1, 1, 2),
+        (-s, -w, 2),
+        (s, w, 2),
+        (-s - 1, -w - 1, 1),
+        (-s + 1, -w + 1, 1),
+        (s - 1, w - 1, 1),
+        (s + 1, w + 1, 1),
+    ] {
+        let f = grid.flags[fi.wrapping_add_signed(df)];
+        if f & SIG != 0 {
+            let j = i.wrapping_add_signed(di);
+            sum += weight * u64::from(side.known_magnitude(j, (f >> PLANE_SHIFT) as u32));
+        }
+    }
+    sum
+}
+
+/// Coder 2's refinement neighbourhood (0..4): the neighbours' known magnitudes at plane `p`.
+#[inline]
+fn refinement_activity<S: Side>(grid: &FlagGrid, side: &S, fi: usize, i: usize, p: u32) -> usize {
+    match neighbour_sum(grid, side, fi, i) >> p {
+        0 => 0,
+        1..16 => 1,
+        16..64 => 2,
+        _ => 3,
+    }
+}
+
+/// `0` for 0, else 1 + ⌊log2 a⌋, at most `levels − 1`.
+#[inline]
+fn log_level(a: u64, levels: usize) -> usize {
+    ((64 - a.leading_zeros()) as usize).min(levels - 1)
 }
 
 /// Bytes and estimated distortion after each complete pass, highest plane first.
@@ -695,6 +869,10 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
         self.coefficients[i].unsigned_abs() >> (p + 1)
+    }
+    #[inline]
+    fn known_magnitude(&self, i: usize, low: u32) -> u32 {
+        self.coefficients[i].unsigned_abs() >> low << low
     }
 }
 
@@ -843,7 +1021,7 @@ fn run_encoder<'a, B: BitSink>(
     choice: ContextChoice,
 ) -> (EncoderSide<'a, B>, Vec<PassRecord>, bool) {
     let mut grid = FlagGrid::new(layout.width, layout.height);
-    let mut contexts = Contexts::with_choice(choice);
+    let mut contexts = Contexts::new(Coder::default(), choice);
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
@@ -939,6 +1117,10 @@ impl Side for DecoderSide<'_> {
     fn known_above(&self, i: usize, p: u32) -> u32 {
         self.values[i].unsigned_abs() >> (p + 1)
     }
+    #[inline]
+    fn known_magnitude(&self, i: usize, _low: u32) -> u32 {
+        self.values[i].unsigned_abs()
+    }
 }
 
 /// The state of a decode: the bits known of every coefficient.
@@ -959,19 +1141,21 @@ impl Decoder {
     /// `max_passes` passes if given.
     pub fn run(
         layout: &CoefficientLayout,
+        coder: Coder,
         payload: &[u8],
         payload_complete: bool,
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Decoder {
         let source = ArithmeticDecoder::new(payload, payload_complete);
-        Decoder::run_from(layout, source, top_plane, max_passes)
+        Decoder::run_from(layout, coder, source, top_plane, max_passes)
     }
 
     /// As [`Decoder::run`], reading the payload through `source` (e.g. a decoder over a
     /// framed section, read in place).
     pub fn run_from(
         layout: &CoefficientLayout,
+        coder: Coder,
         source: ArithmeticDecoder<'_>,
         top_plane: Option<u32>,
         max_passes: Option<u32>,
@@ -982,7 +1166,7 @@ impl Decoder {
             values: vec![0; n_coefficients],
         };
         let mut grid = FlagGrid::new(layout.width, layout.height);
-        let mut contexts = Contexts::default();
+        let mut contexts = Contexts::new(coder, ContextChoice::ALL);
         let mut passes_completed = 0;
         let mut complete = true;
         if let Some(top) = top_plane {
@@ -1119,7 +1303,7 @@ mod tests {
         let weights = vec![1.0; layout.bands.len()];
         let enc = encode(&layout, coefficients, &weights, Midpoint::Integer, None);
         assert!(enc.complete);
-        let dec = Decoder::run(&layout, &enc.bytes, true, enc.top_plane, None);
+        let dec = Decoder::run(&layout, Coder::V2, &enc.bytes, true, enc.top_plane, None);
         assert!(dec.complete);
         assert_eq!(dec.integer_coefficients(), coefficients);
     }
@@ -1155,7 +1339,14 @@ mod tests {
         let mut previous = f64::INFINITY;
         for cut in (0..=enc.bytes.len()).step_by(7).chain([enc.bytes.len()]) {
             let complete = cut == enc.bytes.len();
-            let dec = Decoder::run(&layout, &enc.bytes[..cut], complete, enc.top_plane, None);
+            let dec = Decoder::run(
+                &layout,
+                Coder::V2,
+                &enc.bytes[..cut],
+                complete,
+                enc.top_plane,
+                None,
+            );
             let rec = dec.integer_coefficients();
             let err: f64 = rec
                 .iter()
@@ -1194,7 +1385,14 @@ mod tests {
         let weights = vec![1.0; layout.bands.len()];
         let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
         for (k, record) in enc.passes.iter().enumerate() {
-            let dec = Decoder::run(&layout, &enc.bytes, true, enc.top_plane, Some(k as u32 + 1));
+            let dec = Decoder::run(
+                &layout,
+                Coder::V2,
+                &enc.bytes,
+                true,
+                enc.top_plane,
+                Some(k as u32 + 1),
+            );
             let rec = dec.integer_coefficients();
             let err: f64 = rec
                 .iter()
@@ -1209,6 +1407,7 @@ mod tests {
             // The recorded byte count suffices to decode the whole pass.
             let prefix = Decoder::run(
                 &layout,
+                Coder::V2,
                 &enc.bytes[..record.end_byte as usize],
                 record.end_byte as usize == enc.bytes.len(),
                 enc.top_plane,

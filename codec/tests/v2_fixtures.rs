@@ -1,5 +1,5 @@
-//! Version-2 `.ezw` files made by the first version-2 coder ("coder 1": the context
-//! models before the `flags` bit 9 "coder 2", commit 6eaf062) must decode forever to
+//! Version-2 `.ezw` files made by the first version-2 coder ([`Coder::V1`]: the context
+//! models before the header's "coder 2" bit, commit 6eaf062) must decode forever to
 //! exactly what that coder's decoder made of them, whole and as prefixes.
 //!
 //! `fixtures/v2/NAME.ezw` is the file and `NAME.decoded` its decoded samples, raw
@@ -8,6 +8,7 @@
 
 use std::path::PathBuf;
 
+use wavemesh_codec::ezw::Coder;
 use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
 
 fn fixture(name: &str) -> Vec<u8> {
@@ -41,6 +42,7 @@ fn every_v2_fixture_decodes_to_its_recorded_samples() {
         let decoded = decode(&file, &DecodeOptions::default()).unwrap();
         assert_eq!((decoded.raster.width, decoded.raster.height), (32, 24));
         assert_eq!(decoded.header.mode, mode, "{name} mode");
+        assert_eq!(decoded.header.coder, Coder::V1, "{name} coder");
         assert!(decoded.complete, "{name} complete");
         assert!(decoded.damage.is_none(), "{name} damage");
         assert_eq!(
@@ -89,4 +91,16 @@ fn v2_nodata_and_georeferencing_survive() {
     assert_eq!(voids, 40);
     let nan = decode(&fixture("f32_nan_lossless.ezw"), &DecodeOptions::default()).unwrap();
     assert!(nan.raster.nodata.is_some_and(f64::is_nan));
+}
+
+#[test]
+fn new_files_say_coder_2_and_decode_exactly() {
+    let file = fixture("i16_nodata_georef_lossless.ezw");
+    let old = decode(&file, &DecodeOptions::default()).unwrap();
+    let options = wavemesh_codec::EncodeOptions::new(wavemesh_codec::Quality::Lossless, None);
+    let new = wavemesh_codec::encode(&old.raster, &options).unwrap();
+    let redecoded = decode(&new.bytes, &DecodeOptions::default()).unwrap();
+    assert_eq!(redecoded.header.coder, Coder::V2);
+    assert_eq!(redecoded.raster, old.raster);
+    assert_ne!(new.bytes, file, "coder 2 makes other bytes");
 }
