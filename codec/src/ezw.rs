@@ -286,8 +286,9 @@ trait Side {
     /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
     /// plane `p` is refined).
     fn known_above(&self, i: usize, p: u32) -> u32;
-    /// The magnitude of significant coefficient `i`, known down to its plane `low`.
-    fn known_magnitude(&self, i: usize, low: u32) -> u32;
+    /// Every coefficient as far as it is known to both sides: the magnitude bits decided
+    /// so far with their sign (0 while insignificant).
+    fn known(&self) -> &[i32];
 }
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
@@ -432,7 +433,7 @@ fn scan_pass<S: Side>(
     side: &mut S,
     n: u32,
 ) -> ScanEnd {
-    let w = layout.width;
+    let (w, h) = (layout.width, layout.height);
     // Dominant scan, 64 coefficients of a band row at a time: the bitmaps give the
     // coefficients that are neither significant nor covered by their parent's zerotree,
     // and only those get decisions.
@@ -478,6 +479,7 @@ fn scan_pass<S: Side>(
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
             let row_bit = grid.bit(sub.x0, gy);
+            let row_interior = (1..h - 1).contains(&gy);
             // Bit index of the parent row's first coefficient, if the row has parents.
             let parent_row = parent.as_ref().and_then(|pb| {
                 let py = if pb.halve { y / 2 } else { y };
@@ -519,16 +521,21 @@ fn scan_pass<S: Side>(
                     let x = chunk + k;
                     let fi = row_f + x;
                     let i = row_i + x;
+                    let at = At {
+                        flag: fi,
+                        index: i,
+                        x,
+                        interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
+                    };
                     let (ctx, zctx) =
-                        dominant_contexts(contexts, grid, side, (fi, i, x), class, p, parent_row);
+                        dominant_contexts(contexts, grid, side, at, class, p, parent_row);
                     let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
                     if side.stopped() {
                         deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     if is_significant {
-                        let sctx =
-                            sign_context(contexts, grid, side, (fi, i, x), orientation, parent_row);
+                        let sctx = sign_context(contexts, grid, side, at, orientation, parent_row);
                         let negative = side.sign(i, &mut contexts.sign[sctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -562,6 +569,7 @@ fn scan_pass<S: Side>(
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
             let row_bit = grid.bit(sub.x0, gy);
+            let row_interior = (1..h - 1).contains(&gy);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let mut todo = extract_bits(&grid.sig_bits, row_bit + chunk, len);
@@ -583,20 +591,25 @@ fn scan_pass<S: Side>(
                         2 | 3 => 1,
                         _ => 2,
                     } * choice.refinement_age as usize;
-                    let busy = match contexts.coder {
-                        Coder::V1 => {
-                            let (hv, diag) = grid.neighbourhood(fi);
-                            (hv + diag > 1) as usize
-                        }
-                        Coder::V2 => refinement_activity(grid, side, fi, i, p),
-                    } * choice.neighbours as usize;
-                    let levels = contexts.refinement.len() / 8;
-                    let rctx = ((age & 1) * levels + busy) * 4
-                        + band.class * choice.subband_class as usize;
                     // Bits of magnitudes known to 3+ planes are all but random: raw.
                     let bit = if age == 2 {
                         side.raw_refinement(i, p)
                     } else {
+                        let at = At {
+                            flag: fi,
+                            index: i,
+                            x,
+                            interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
+                        };
+                        let rctx = refinement_context(
+                            contexts,
+                            grid,
+                            side.known(),
+                            at,
+                            p,
+                            age,
+                            band.class,
+                        );
                         side.refinement(i, p, &mut contexts.refinement[rctx])
                     };
                     if side.stopped() {
@@ -619,12 +632,13 @@ fn sign_context<S: Side>(
     contexts: &Contexts,
     grid: &FlagGrid,
     side: &S,
-    (fi, i, x): (usize, usize, usize),
+    at: At,
     orientation: usize,
     parent_row: Option<ParentRow>,
 ) -> usize {
     let s = grid.stride;
     let w = s - 2;
+    let (fi, i) = (at.flag, at.index);
     let state = |df: usize, j: usize| sign_state(grid.flags[df], side, j);
     let signs = contexts.choice.neighbour_signs as usize;
     let left = state(fi - 1, i.wrapping_sub(1));
@@ -639,7 +653,7 @@ fn sign_context<S: Side>(
             let h = balance(left, state(fi + 1, i + 1));
             let v = balance(up, state(fi + s, i + w));
             let parent = parent_row
-                .and_then(|pr| Some((pr, pr.column(x)?)))
+                .and_then(|pr| Some((pr, pr.column(at.x)?)))
                 .map_or(0, |(pr, px)| {
                     state(pr.flag + px, pr.index + px) * contexts.choice.parent as usize
                 });
@@ -664,27 +678,40 @@ fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
     }
 }
 
-/// The significance and zerotree model indices of insignificant coefficient `at`
-/// (flag index, coefficient index, column in its band) at own plane `p`.
+/// Where a coefficient is.
+#[derive(Clone, Copy)]
+struct At {
+    /// Index in the flag grid.
+    flag: usize,
+    /// Index in the coefficient array.
+    index: usize,
+    /// Column in its band.
+    x: usize,
+    /// Whether all 8 neighbours are inside the array.
+    interior: bool,
+}
+
+/// The significance and zerotree model indices of insignificant coefficient `at` at own
+/// plane `p`.
 #[inline]
 fn dominant_contexts<S: Side>(
     contexts: &Contexts,
     grid: &FlagGrid,
     side: &S,
-    (fi, i, x): (usize, usize, usize),
+    at: At,
     class: usize,
     p: u32,
     parent_row: Option<ParentRow>,
 ) -> (usize, usize) {
     let choice = contexts.choice;
     let parent_flags = parent_row
-        .and_then(|pr| Some((pr, pr.column(x)?)))
+        .and_then(|pr| Some((pr, pr.column(at.x)?)))
         .map(|(pr, px)| (pr, px, grid.flags[pr.flag + px]))
         .filter(|&(_, _, f)| f & SIG != 0 && choice.parent);
     match contexts.coder {
         Coder::V1 => {
             let parent_sig = parent_flags.is_some() as usize;
-            let (hv, diag) = grid.neighbourhood(fi);
+            let (hv, diag) = grid.neighbourhood(at.flag);
             let (hv, diag) = (
                 hv * choice.neighbours as usize,
                 diag * choice.neighbours as usize,
@@ -696,12 +723,12 @@ fn dominant_contexts<S: Side>(
         }
         Coder::V2 => {
             let activity = if choice.neighbours {
-                log_level(neighbour_sum(grid, side, fi, i) >> p, ACTIVITY_LEVELS)
+                log_level(neighbour_sum(grid, side.known(), at) >> p, ACTIVITY_LEVELS)
             } else {
                 0
             };
-            let parent = parent_flags.map_or(0, |(pr, px, f)| {
-                let known = side.known_magnitude(pr.index + px, (f >> PLANE_SHIFT) as u32);
+            let parent = parent_flags.map_or(0, |(pr, px, _)| {
+                let known = side.known()[pr.index + px].unsigned_abs();
                 1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
             });
             let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
@@ -710,13 +737,23 @@ fn dominant_contexts<S: Side>(
     }
 }
 
-/// Known magnitudes of the 8 neighbours of flag index `fi` (coefficient `i`), the
-/// horizontal and vertical ones counted twice.
+/// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
+/// ones counted twice.
 #[inline]
-fn neighbour_sum<S: Side>(grid: &FlagGrid, side: &S, fi: usize, i: usize) -> u64 {
-    let s = grid.stride as isize;
+fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
     // The grid's rows are the coefficient rows with a border column on each side.
-    let w = s - 2;
+    let w = grid.stride - 2;
+    let i = at.index;
+    let m = |j: usize| u64::from(known[j].unsigned_abs());
+    if at.interior {
+        return 2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
+            + m(i - w - 1)
+            + m(i - w + 1)
+            + m(i + w - 1)
+            + m(i + w + 1);
+    }
+    // On the array's edge: the border flags say which neighbours exist.
+    let (s, w) = (grid.stride as isize, w as isize);
     let mut sum = 0u64;
     for (df, di, weight) in [
         (-1, -1, 2),
@@ -728,24 +765,42 @@ fn neighbour_sum<S: Side>(grid: &FlagGrid, side: &S, fi: usize, i: usize) -> u64
         (s - 1, w - 1, 1),
         (s + 1, w + 1, 1),
     ] {
-        let f = grid.flags[fi.wrapping_add_signed(df)];
-        if f & SIG != 0 {
-            let j = i.wrapping_add_signed(di);
-            sum += weight * u64::from(side.known_magnitude(j, (f >> PLANE_SHIFT) as u32));
+        if grid.flags[at.flag.wrapping_add_signed(df)] & SIG != 0 {
+            sum += weight * m(i.wrapping_add_signed(di));
         }
     }
     sum
 }
 
-/// Coder 2's refinement neighbourhood (0..4): the neighbours' known magnitudes at plane `p`.
+/// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
 #[inline]
-fn refinement_activity<S: Side>(grid: &FlagGrid, side: &S, fi: usize, i: usize, p: u32) -> usize {
-    match neighbour_sum(grid, side, fi, i) >> p {
-        0 => 0,
-        1..16 => 1,
-        16..64 => 2,
-        _ => 3,
-    }
+fn refinement_context(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    known: &[i32],
+    at: At,
+    p: u32,
+    age: usize,
+    class: usize,
+) -> usize {
+    let choice = contexts.choice;
+    let (busy, levels) = match contexts.coder {
+        Coder::V1 => {
+            let (hv, diag) = grid.neighbourhood(at.flag);
+            ((hv + diag > 1) as usize, 2)
+        }
+        // Coder 2: the neighbours' known magnitudes at plane `p`.
+        Coder::V2 => {
+            let level = match neighbour_sum(grid, known, at) >> p {
+                0 => 0,
+                1..16 => 1,
+                16..64 => 2,
+                _ => 3,
+            };
+            (level, 4)
+        }
+    };
+    ((age * levels) + busy * choice.neighbours as usize) * 4 + class * choice.subband_class as usize
 }
 
 /// `0` for 0, else 1 + ⌊log2 a⌋, at most `levels − 1`.
@@ -783,6 +838,8 @@ pub struct EncodedPayload {
 struct EncoderSide<'a, B: BitSink> {
     sink: B,
     coefficients: &'a [i32],
+    /// What the decoder knows of every coefficient (see [`Side::known`]).
+    known: Vec<i32>,
     /// Descendant plane masks: bit n set when some descendant has global plane n.
     descendants: &'a [u64],
     /// Squared synthesis norm of each band, in pixel units per coefficient unit.
@@ -846,16 +903,21 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         self.over_budget
     }
     #[inline]
-    fn commit_significant(&mut self, i: usize, band: usize, p: u32, _negative: bool) {
+    fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool) {
         let m = self.coefficients[i].unsigned_abs();
+        self.known[i] = if negative { -1 << p } else { 1 << p };
         let before = m as f64;
         let known = m >> p << p;
         let after = m as f64 - self.midpoint.value(known, p);
         self.squared_error += (after * after - before * before) * self.band_weights[band];
     }
     #[inline]
-    fn commit_refinement(&mut self, i: usize, band: usize, p: u32, _bit: bool) {
+    fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool) {
         let m = self.coefficients[i].unsigned_abs();
+        if bit {
+            let k = &mut self.known[i];
+            *k += if *k < 0 { -1 << p } else { 1 << p };
+        }
         let old_known = m >> (p + 1) << (p + 1);
         let before = m as f64 - self.midpoint.value(old_known, p + 1);
         let known = m >> p << p;
@@ -871,8 +933,8 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         self.coefficients[i].unsigned_abs() >> (p + 1)
     }
     #[inline]
-    fn known_magnitude(&self, i: usize, low: u32) -> u32 {
-        self.coefficients[i].unsigned_abs() >> low << low
+    fn known(&self) -> &[i32] {
+        &self.known
     }
 }
 
@@ -981,6 +1043,7 @@ pub fn encode(
     let side = EncoderSide {
         sink: ArithmeticEncoder::new(),
         coefficients,
+        known: vec![0; coefficients.len()],
         descendants: &descendants,
         band_weights,
         squared_error: initial_error,
@@ -1055,6 +1118,7 @@ pub fn count_bits(layout: &CoefficientLayout, coefficients: &[i32], choice: Cont
     let side = EncoderSide {
         sink: BitCounter::new(),
         coefficients,
+        known: vec![0; coefficients.len()],
         descendants: &descendants,
         band_weights: &weights,
         squared_error: 0.0,
@@ -1118,8 +1182,8 @@ impl Side for DecoderSide<'_> {
         self.values[i].unsigned_abs() >> (p + 1)
     }
     #[inline]
-    fn known_magnitude(&self, i: usize, _low: u32) -> u32 {
-        self.values[i].unsigned_abs()
+    fn known(&self) -> &[i32] {
+        &self.values
     }
 }
 
