@@ -23,7 +23,7 @@ use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throug
 use std::hint::black_box;
 use std::time::Duration;
 use wavemesh_codec::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitModel, BitSink};
-use wavemesh_codec::ezw::{self, CoefficientLayout, ContextChoice, Decoder, Midpoint};
+use wavemesh_codec::ezw::{self, Coder, CoefficientLayout, ContextChoice, Decoder, Midpoint};
 use wavemesh_codec::wavelet::{self, Wavelet};
 
 /// Side of the synthetic terrain.
@@ -162,7 +162,14 @@ fn bench_ezw(c: &mut Criterion) {
     let encoded = encode();
     assert!(encoded.complete);
     assert_eq!(encoded.top_plane, ezw::top_plane(layout, coefficients));
-    let decoded = Decoder::run(layout, &encoded.bytes, true, encoded.top_plane, None);
+    let decoded = Decoder::run(
+        layout,
+        Coder::default(),
+        &encoded.bytes,
+        true,
+        encoded.top_plane,
+        None,
+    );
     assert!(decoded.complete);
     assert_eq!(
         &decoded.integer_coefficients(),
@@ -186,6 +193,7 @@ fn bench_ezw(c: &mut Criterion) {
         b.iter(|| {
             black_box(Decoder::run(
                 layout,
+                Coder::default(),
                 black_box(&encoded.bytes),
                 true,
                 encoded.top_plane,

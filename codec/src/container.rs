@@ -9,7 +9,7 @@ mod v1;
 mod v2;
 
 use crate::error::CodecError;
-use crate::ezw::{PassRecord, MAX_PLANE};
+use crate::ezw::{Coder, PassRecord, MAX_PLANE};
 use crate::quantize::ValueMapping;
 use crate::raster::{Georef, Metadata, SampleType};
 use crate::wavelet::{self, Wavelet};
@@ -90,6 +90,8 @@ pub struct Header {
     pub valid_range: (f64, f64),
     /// Global bit-plane of the first pass; `None` when every coefficient is zero.
     pub top_plane: Option<u8>,
+    /// The context models the payload is coded with (version 1 files: [`Coder::V1`]).
+    pub coder: Coder,
     /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
     pub bands: Vec<(u8, f64)>,
     /// Bytes of the payload in the file (framed: with its chunk checksums).
@@ -829,6 +831,7 @@ mod tests {
             nodata: Some(f64::NAN),
             valid_range: (236.0, 1076.0),
             top_plane: Some(17),
+            coder: Coder::V2,
             bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
             payload_len: 12345,
             payload_truncated: false,

@@ -20,8 +20,9 @@
 //!
 //! The four-valued symbols go through binary decisions: significant? then the sign, or
 //! (for coefficients with children) zerotree root? Each decision has its own adaptive
-//! [`BitModel`], chosen by subband class, the significance of the coefficient's spatial
-//! neighbours and of its parent (see [`Contexts`]).
+//! [`BitModel`], chosen by subband class and by what is known of the coefficient's
+//! spatial neighbours and of its parent: their significance ([`Coder::V1`]) or their
+//! magnitudes and signs ([`Coder::V2`], what new streams use; see [`Contexts`]).
 //!
 //! Encoder and decoder run the same scan ([`scan_pass`]) with a different [`Side`]; the
 //! decoder stops at the first decision its bytes cannot determine, leaving every
@@ -31,6 +32,11 @@ use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel,
 use crate::progress::Stage;
 use crate::significance::SignificanceMap;
 use crate::wavelet::{Orientation, Subband};
+
+mod contexts;
+
+use contexts::{dominant_contexts, refinement_context, sign_context, At};
+pub use contexts::{Coder, ContextChoice, Contexts};
 
 /// Flag bits kept per coefficient during a scan.
 const SIG: u8 = 1; // significant
@@ -167,76 +173,6 @@ impl CoefficientLayout {
     }
 }
 
-/// Which context information the models are selected by (all of it in every stream; the
-/// others exist to measure what each piece buys, with [`count_bits`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ContextChoice {
-    /// Subband class (LL, coarse, level 2, level 1) for significance, zerotree, refinement.
-    pub subband_class: bool,
-    /// Significance of the spatial neighbours (significance, zerotree, refinement).
-    pub neighbours: bool,
-    /// Significance of the parent (significance, zerotree).
-    pub parent: bool,
-    /// Signs of the left and upper neighbours (sign).
-    pub neighbour_signs: bool,
-    /// How many planes ago the coefficient became significant (refinement).
-    pub refinement_age: bool,
-}
-
-impl ContextChoice {
-    /// Every context in use: what streams are coded with.
-    pub const ALL: ContextChoice = ContextChoice {
-        subband_class: true,
-        neighbours: true,
-        parent: true,
-        neighbour_signs: true,
-        refinement_age: true,
-    };
-    /// One model per decision kind.
-    pub const NONE: ContextChoice = ContextChoice {
-        subband_class: false,
-        neighbours: false,
-        parent: false,
-        neighbour_signs: false,
-        refinement_age: false,
-    };
-}
-
-/// The adaptive models, grouped by decision.
-#[derive(Debug, Clone)]
-pub struct Contexts {
-    choice: ContextChoice,
-    /// Significance: class (4) × horizontal+vertical significant neighbours (3)
-    /// × any diagonal neighbour significant (2) × parent significant (2).
-    significance: Vec<BitModel>,
-    /// Zerotree root vs isolated zero: class (4) × neighbours (3) × parent significant (2).
-    zerotree: Vec<BitModel>,
-    /// Sign: orientation (4) × left neighbour (3: none, +, −) × upper neighbour (3).
-    sign: Vec<BitModel>,
-    /// Refinement: age of the coefficient's significance (2: first refinement, second;
-    /// older ones are coded raw) × busy neighbourhood (2) × class (4).
-    refinement: Vec<BitModel>,
-}
-
-impl Default for Contexts {
-    fn default() -> Self {
-        Contexts::with_choice(ContextChoice::ALL)
-    }
-}
-
-impl Contexts {
-    /// Fresh models selected by `choice`.
-    pub fn with_choice(choice: ContextChoice) -> Self {
-        Contexts {
-            choice,
-            significance: vec![BitModel::new(); 4 * 3 * 2 * 2],
-            zerotree: vec![BitModel::new(); 4 * 3 * 2],
-            sign: vec![BitModel::new(); 4 * 3 * 3],
-            refinement: vec![BitModel::new(); 2 * 2 * 4],
-        }
-    }
-}
-
 /// What differs between encoding and decoding a scan.
 trait Side {
     /// Is coefficient `i` significant at own plane `p`?
@@ -261,6 +197,9 @@ trait Side {
     /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
     /// plane `p` is refined).
     fn known_above(&self, i: usize, p: u32) -> u32;
+    /// Every coefficient as far as it is known to both sides: the magnitude bits decided
+    /// so far with their sign (0 while insignificant).
+    fn known(&self) -> &[i32];
 }
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
@@ -366,6 +305,29 @@ struct ParentBand {
     width: usize,
     height: usize,
     halve: bool,
+    /// The parent band's own plane in this pass.
+    plane: u32,
+}
+
+/// One row of parents: where its first coefficient is in the bitmaps, the flags and the
+/// coefficients.
+#[derive(Clone, Copy)]
+struct ParentRow {
+    bit: usize,
+    flag: usize,
+    index: usize,
+    width: usize,
+    halve: bool,
+    plane: u32,
+}
+
+impl ParentRow {
+    /// Column of the parent of column `x`, if the row has one there.
+    #[inline]
+    fn column(&self, x: usize) -> Option<usize> {
+        let px = if self.halve { x >> 1 } else { x };
+        (px < self.width).then_some(px)
+    }
 }
 
 /// Outcome of one scan.
@@ -382,8 +344,7 @@ fn scan_pass<S: Side>(
     side: &mut S,
     n: u32,
 ) -> ScanEnd {
-    let w = layout.width;
-    let stride = grid.stride;
+    let (w, h) = (layout.width, layout.height);
     // Dominant scan, 64 coefficients of a band row at a time: the bitmaps give the
     // coefficients that are neither significant nor covered by their parent's zerotree,
     // and only those get decisions.
@@ -408,42 +369,49 @@ fn scan_pass<S: Side>(
             }
             continue;
         };
-        let parent = band
-            .parent
-            .filter(|&pb| layout.bands[pb].plane_in_pass(n).is_some())
-            .map(|pb| {
-                let ps = layout.bands[pb].sub;
-                ParentBand {
-                    x0: ps.x0,
-                    y0: ps.y0,
-                    width: ps.width,
-                    height: ps.height,
-                    halve: band.halve,
-                }
-            });
+        let parent = band.parent.and_then(|pb| {
+            let ps = layout.bands[pb].sub;
+            Some(ParentBand {
+                x0: ps.x0,
+                y0: ps.y0,
+                width: ps.width,
+                height: ps.height,
+                halve: band.halve,
+                plane: layout.bands[pb].plane_in_pass(n)?,
+            })
+        });
         let has_children = band.has_children;
         let choice = contexts.choice;
         let class = band.class * choice.subband_class as usize;
+
         let orientation = band.orientation;
         for y in 0..sub.height {
             let gy = sub.y0 + y;
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
             let row_bit = grid.bit(sub.x0, gy);
+            let row_interior = (1..h - 1).contains(&gy);
             // Bit index of the parent row's first coefficient, if the row has parents.
             let parent_row = parent.as_ref().and_then(|pb| {
                 let py = if pb.halve { y / 2 } else { y };
-                (py < pb.height).then(|| (grid.bit(pb.x0, pb.y0 + py), pb.width, pb.halve))
+                (py < pb.height).then(|| ParentRow {
+                    bit: grid.bit(pb.x0, pb.y0 + py),
+                    flag: grid.at(pb.x0, pb.y0 + py),
+                    index: (pb.y0 + py) * w + pb.x0,
+                    width: pb.width,
+                    halve: pb.halve,
+                    plane: pb.plane,
+                })
             });
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
-                    Some((start, pw, true)) if chunk / 2 < pw => {
-                        let plen = (pw - chunk / 2).min(32);
-                        spread_bits(extract_bits(&grid.zt_bits, start + chunk / 2, plen) as u32)
+                    Some(pr) if pr.halve && chunk / 2 < pr.width => {
+                        let plen = (pr.width - chunk / 2).min(32);
+                        spread_bits(extract_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
                     }
-                    Some((start, pw, false)) if chunk < pw => {
-                        extract_bits(&grid.zt_bits, start + chunk, (pw - chunk).min(64))
+                    Some(pr) if !pr.halve && chunk < pr.width => {
+                        extract_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
                     }
                     _ => 0,
                 };
@@ -464,32 +432,21 @@ fn scan_pass<S: Side>(
                     let x = chunk + k;
                     let fi = row_f + x;
                     let i = row_i + x;
-                    let parent_sig = match parent_row {
-                        Some((start, pw, halve)) => {
-                            let px = if halve { x >> 1 } else { x };
-                            (px < pw
-                                && grid.sig_bits[(start + px) / 64] >> ((start + px) % 64) & 1 != 0)
-                                as usize
-                        }
-                        None => 0,
+                    let at = At {
+                        flag: fi,
+                        index: i,
+                        x,
+                        interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
                     };
-                    let (hv, diag) = grid.neighbourhood(fi);
-                    let (hv, diag) = (
-                        hv * choice.neighbours as usize,
-                        diag * choice.neighbours as usize,
-                    );
-                    let parent_sig = parent_sig * choice.parent as usize;
-                    let ctx = ((class * 3 + hv) * 2 + diag) * 2 + parent_sig;
+                    let (ctx, zctx) =
+                        dominant_contexts(contexts, grid, side, at, class, p, parent_row);
                     let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
                     if side.stopped() {
                         deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     if is_significant {
-                        let left = sign_state(grid.flags[fi - 1], side, i.wrapping_sub(1));
-                        let up = sign_state(grid.flags[fi - stride], side, i.wrapping_sub(w));
-                        let signs = choice.neighbour_signs as usize;
-                        let sctx = (orientation * 3 + left * signs) * 3 + up * signs;
+                        let sctx = sign_context(contexts, grid, side, at, orientation, parent_row);
                         let negative = side.sign(i, &mut contexts.sign[sctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -500,7 +457,6 @@ fn scan_pass<S: Side>(
                         let bit = row_bit + x;
                         grid.sig_bits[bit / 64] |= 1 << (bit % 64);
                     } else if has_children {
-                        let zctx = (class * 3 + hv) * 2 + parent_sig;
                         let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
                         if side.stopped() {
                             deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
@@ -524,6 +480,7 @@ fn scan_pass<S: Side>(
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
             let row_bit = grid.bit(sub.x0, gy);
+            let row_interior = (1..h - 1).contains(&gy);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let mut todo = extract_bits(&grid.sig_bits, row_bit + chunk, len);
@@ -545,14 +502,25 @@ fn scan_pass<S: Side>(
                         2 | 3 => 1,
                         _ => 2,
                     } * choice.refinement_age as usize;
-                    let (hv, diag) = grid.neighbourhood(fi);
-                    let busy = (hv + diag > 1) as usize * choice.neighbours as usize;
-                    let rctx =
-                        ((age & 1) * 2 + busy) * 4 + band.class * choice.subband_class as usize;
                     // Bits of magnitudes known to 3+ planes are all but random: raw.
                     let bit = if age == 2 {
                         side.raw_refinement(i, p)
                     } else {
+                        let at = At {
+                            flag: fi,
+                            index: i,
+                            x,
+                            interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
+                        };
+                        let rctx = refinement_context(
+                            contexts,
+                            grid,
+                            side.known(),
+                            at,
+                            p,
+                            age,
+                            band.class,
+                        );
                         side.refinement(i, p, &mut contexts.refinement[rctx])
                     };
                     if side.stopped() {
@@ -565,19 +533,6 @@ fn scan_pass<S: Side>(
         }
     }
     ScanEnd::Finished
-}
-
-/// Sign state of a neighbour for sign contexts: 0 = not significant (or outside the
-/// array: border flags are zero, so `j` is then never used), 1 = +, 2 = −.
-#[inline]
-fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
-    if flags & SIG == 0 {
-        0
-    } else if side.is_negative(j) {
-        2
-    } else {
-        1
-    }
 }
 
 /// Bytes and estimated distortion after each complete pass, highest plane first.
@@ -611,6 +566,8 @@ pub struct EncodedPayload {
 struct EncoderSide<'a, B: BitSink> {
     sink: B,
     coefficients: &'a [i32],
+    /// What the decoder knows of every coefficient (see [`Side::known`]).
+    known: Vec<i32>,
     /// Descendant plane masks: bit n set when some descendant has global plane n.
     descendants: &'a [u64],
     /// Squared synthesis norm of each band, in pixel units per coefficient unit.
@@ -674,16 +631,21 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         self.over_budget
     }
     #[inline]
-    fn commit_significant(&mut self, i: usize, band: usize, p: u32, _negative: bool) {
+    fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool) {
         let m = self.coefficients[i].unsigned_abs();
+        self.known[i] = if negative { -1 << p } else { 1 << p };
         let before = m as f64;
         let known = m >> p << p;
         let after = m as f64 - self.midpoint.value(known, p);
         self.squared_error += (after * after - before * before) * self.band_weights[band];
     }
     #[inline]
-    fn commit_refinement(&mut self, i: usize, band: usize, p: u32, _bit: bool) {
+    fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool) {
         let m = self.coefficients[i].unsigned_abs();
+        if bit {
+            let k = &mut self.known[i];
+            *k += if *k < 0 { -1 << p } else { 1 << p };
+        }
         let old_known = m >> (p + 1) << (p + 1);
         let before = m as f64 - self.midpoint.value(old_known, p + 1);
         let known = m >> p << p;
@@ -697,6 +659,10 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
         self.coefficients[i].unsigned_abs() >> (p + 1)
+    }
+    #[inline]
+    fn known(&self) -> &[i32] {
+        &self.known
     }
 }
 
@@ -805,6 +771,7 @@ pub fn encode(
     let side = EncoderSide {
         sink: ArithmeticEncoder::new(),
         coefficients,
+        known: vec![0; coefficients.len()],
         descendants: &descendants,
         band_weights,
         squared_error: initial_error,
@@ -846,7 +813,7 @@ fn run_encoder<'a, B: BitSink>(
     choice: ContextChoice,
 ) -> (EncoderSide<'a, B>, Vec<PassRecord>, bool) {
     let mut grid = FlagGrid::new(layout.width, layout.height);
-    let mut contexts = Contexts::with_choice(choice);
+    let mut contexts = Contexts::new(Coder::default(), choice);
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
@@ -880,6 +847,7 @@ pub fn count_bits(layout: &CoefficientLayout, coefficients: &[i32], choice: Cont
     let side = EncoderSide {
         sink: BitCounter::new(),
         coefficients,
+        known: vec![0; coefficients.len()],
         descendants: &descendants,
         band_weights: &weights,
         squared_error: 0.0,
@@ -942,6 +910,10 @@ impl Side for DecoderSide<'_> {
     fn known_above(&self, i: usize, p: u32) -> u32 {
         self.values[i].unsigned_abs() >> (p + 1)
     }
+    #[inline]
+    fn known(&self) -> &[i32] {
+        &self.values
+    }
 }
 
 /// The state of a decode: the bits known of every coefficient.
@@ -962,19 +934,21 @@ impl Decoder {
     /// `max_passes` passes if given.
     pub fn run(
         layout: &CoefficientLayout,
+        coder: Coder,
         payload: &[u8],
         payload_complete: bool,
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Decoder {
         let source = ArithmeticDecoder::new(payload, payload_complete);
-        Decoder::run_from(layout, source, top_plane, max_passes)
+        Decoder::run_from(layout, coder, source, top_plane, max_passes)
     }
 
     /// As [`Decoder::run`], reading the payload through `source` (e.g. a decoder over a
     /// framed section, read in place).
     pub fn run_from(
         layout: &CoefficientLayout,
+        coder: Coder,
         source: ArithmeticDecoder<'_>,
         top_plane: Option<u32>,
         max_passes: Option<u32>,
@@ -985,7 +959,7 @@ impl Decoder {
             values: vec![0; n_coefficients],
         };
         let mut grid = FlagGrid::new(layout.width, layout.height);
-        let mut contexts = Contexts::default();
+        let mut contexts = Contexts::new(coder, ContextChoice::ALL);
         let mut passes_completed = 0;
         let mut complete = true;
         if let Some(top) = top_plane {
@@ -1122,7 +1096,7 @@ mod tests {
         let weights = vec![1.0; layout.bands.len()];
         let enc = encode(&layout, coefficients, &weights, Midpoint::Integer, None);
         assert!(enc.complete);
-        let dec = Decoder::run(&layout, &enc.bytes, true, enc.top_plane, None);
+        let dec = Decoder::run(&layout, Coder::V2, &enc.bytes, true, enc.top_plane, None);
         assert!(dec.complete);
         assert_eq!(dec.integer_coefficients(), coefficients);
     }
@@ -1158,7 +1132,14 @@ mod tests {
         let mut previous = f64::INFINITY;
         for cut in (0..=enc.bytes.len()).step_by(7).chain([enc.bytes.len()]) {
             let complete = cut == enc.bytes.len();
-            let dec = Decoder::run(&layout, &enc.bytes[..cut], complete, enc.top_plane, None);
+            let dec = Decoder::run(
+                &layout,
+                Coder::V2,
+                &enc.bytes[..cut],
+                complete,
+                enc.top_plane,
+                None,
+            );
             let rec = dec.integer_coefficients();
             let err: f64 = rec
                 .iter()
@@ -1197,7 +1178,14 @@ mod tests {
         let weights = vec![1.0; layout.bands.len()];
         let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
         for (k, record) in enc.passes.iter().enumerate() {
-            let dec = Decoder::run(&layout, &enc.bytes, true, enc.top_plane, Some(k as u32 + 1));
+            let dec = Decoder::run(
+                &layout,
+                Coder::V2,
+                &enc.bytes,
+                true,
+                enc.top_plane,
+                Some(k as u32 + 1),
+            );
             let rec = dec.integer_coefficients();
             let err: f64 = rec
                 .iter()
@@ -1212,6 +1200,7 @@ mod tests {
             // The recorded byte count suffices to decode the whole pass.
             let prefix = Decoder::run(
                 &layout,
+                Coder::V2,
                 &enc.bytes[..record.end_byte as usize],
                 record.end_byte as usize == enc.bytes.len(),
                 enc.top_plane,

@@ -371,6 +371,8 @@ fn encode_stream(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, P
             .or((has_voids && raster.sample_type() == SampleType::F32).then_some(f64::NAN)),
         valid_range,
         top_plane: top.map(|t| t as u8),
+        // What `ezw::encode` codes with.
+        coder: ezw::Coder::default(),
         bands: prepared
             .shifts
             .iter()
@@ -1057,6 +1059,7 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
     );
     let decoder = Decoder::run_from(
         &layout,
+        header.coder,
         source,
         header.top_plane.map(u32::from),
         options.max_passes,

@@ -58,6 +58,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         coefficient_step,
         nodata,
         valid_range,
+        coder: crate::ezw::Coder::V1,
         top_plane,
         bands,
         payload_len,

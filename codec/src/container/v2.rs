@@ -4,6 +4,7 @@
 
 use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader, Tiling};
 use crate::error::CodecError;
+use crate::ezw::Coder;
 use crate::raster::geokey::{
     GEOGRAPHIC_TYPE, MODEL_GEOGRAPHIC, MODEL_PROJECTED, MODEL_TYPE, PROJECTED_TYPE, RASTER_TYPE,
 };
@@ -24,6 +25,10 @@ mod flag {
     pub const TILED: u64 = 1 << 8;
     pub const ALL: u64 = (1 << 9) - 1;
 }
+
+/// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
+/// [`Coder::V2`] (a byte, not a `flags` bit, so that headers do not grow).
+const CODER_2_BIT: u8 = 7;
 
 /// Georeferencing flag bits.
 const NORTH_UP: u8 = 1;
@@ -51,7 +56,10 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     write_varint(&mut body, header.width.into());
     write_varint(&mut body, header.height.into());
     body.extend_from_slice(&[
-        header.sample_type.code() | header.wavelet.code() << 3 | header.mode.code() << 5,
+        header.sample_type.code()
+            | header.wavelet.code() << 3
+            | header.mode.code() << 5
+            | u8::from(header.coder == Coder::V2) << CODER_2_BIT,
         header.levels,
     ]);
     write_number(&mut body, header.mapping.offset);
@@ -211,7 +219,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
     let height = r.varint_u32("height")?;
     let kinds = r.u8()?;
     let mut codes = Reader {
-        data: &[kinds & 7, kinds >> 3 & 3, r.u8()?, kinds >> 5],
+        data: &[kinds & 7, kinds >> 3 & 3, r.u8()?, kinds >> 5 & 3],
         pos: 0,
     };
     let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
@@ -290,6 +298,11 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         nodata,
         valid_range: (min, max),
         top_plane,
+        coder: if kinds >> CODER_2_BIT != 0 {
+            Coder::V2
+        } else {
+            Coder::V1
+        },
         bands,
         payload_len,
         payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,

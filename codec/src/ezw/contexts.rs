@@ -1,0 +1,287 @@
+//! The context models: which adaptive [`BitModel`] codes each EZW decision, chosen from
+//! what encoder and decoder both know at that moment of the scan (the flags, the known
+//! coefficient values, the parent).
+
+use super::{FlagGrid, ParentRow, Side, SIG};
+use crate::entropy::BitModel;
+
+/// Which context information the models are selected by (all of it in every stream; the
+/// others exist to measure what each piece buys, with [`super::count_bits`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContextChoice {
+    /// Subband class (LL, coarse, level 2, level 1) for significance, zerotree, refinement.
+    pub subband_class: bool,
+    /// Significance of the spatial neighbours (significance, zerotree, refinement).
+    pub neighbours: bool,
+    /// Significance of the parent (significance, zerotree).
+    pub parent: bool,
+    /// Signs of the left and upper neighbours (sign).
+    pub neighbour_signs: bool,
+    /// How many planes ago the coefficient became significant (refinement).
+    pub refinement_age: bool,
+}
+
+impl ContextChoice {
+    /// Every context in use: what streams are coded with.
+    pub const ALL: ContextChoice = ContextChoice {
+        subband_class: true,
+        neighbours: true,
+        parent: true,
+        neighbour_signs: true,
+        refinement_age: true,
+    };
+    /// One model per decision kind.
+    pub const NONE: ContextChoice = ContextChoice {
+        subband_class: false,
+        neighbours: false,
+        parent: false,
+        neighbour_signs: false,
+        refinement_age: false,
+    };
+}
+
+/// Which context models a stream is coded with (the header's "coder 2" flag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Coder {
+    /// The first models: neighbour and parent *significance* only.
+    V1,
+    /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent
+    /// (what every new stream is coded with).
+    #[default]
+    V2,
+}
+
+/// The adaptive models, grouped by decision.
+#[derive(Debug, Clone)]
+pub struct Contexts {
+    pub(super) coder: Coder,
+    pub(super) choice: ContextChoice,
+    /// Significance. V1: class (4) × horizontal+vertical significant neighbours (3)
+    /// × any diagonal neighbour significant (2) × parent significant (2). V2: class (4)
+    /// × neighbour activity (8) × parent activity (3).
+    pub(super) significance: Vec<BitModel>,
+    /// Zerotree root vs isolated zero. V1: class (4) × neighbours (3) × parent
+    /// significant (2). V2: as significance.
+    pub(super) zerotree: Vec<BitModel>,
+    /// Sign. V1: orientation (4) × left neighbour (3: none, +, −) × upper neighbour (3).
+    /// V2: orientation (4) × horizontal sign balance (3) × vertical (3) × parent sign (3).
+    pub(super) sign: Vec<BitModel>,
+    /// Refinement: age of the coefficient's significance (2: first refinement, second;
+    /// older ones are coded raw) × neighbourhood (V1: busy or not, 2; V2: activity, 4)
+    /// × class (4).
+    pub(super) refinement: Vec<BitModel>,
+}
+
+impl Default for Contexts {
+    fn default() -> Self {
+        Contexts::new(Coder::default(), ContextChoice::ALL)
+    }
+}
+
+impl Contexts {
+    /// Fresh models of `coder` selected by `choice`.
+    pub fn new(coder: Coder, choice: ContextChoice) -> Self {
+        let (activity, busy) = match coder {
+            Coder::V1 => (3 * 2 * 2, 2),
+            Coder::V2 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
+        };
+        Contexts {
+            coder,
+            choice,
+            significance: vec![BitModel::new(); 4 * activity],
+            zerotree: vec![BitModel::new(); 4 * activity],
+            sign: vec![BitModel::new(); 4 * 3 * 3 * 3],
+            refinement: vec![BitModel::new(); 2 * busy * 4],
+        }
+    }
+}
+
+/// Levels of the quantised neighbour activity of coder 2.
+const ACTIVITY_LEVELS: usize = 8;
+/// Levels of the quantised parent magnitude of coder 2.
+const PARENT_LEVELS: usize = 3;
+
+/// The sign model index of coefficient `at` (flag index, coefficient index, column in
+/// its band). V1: the left and upper neighbours' signs; V2: the horizontal and vertical
+/// neighbours' sign balance and the parent's sign.
+#[inline]
+pub(super) fn sign_context<S: Side>(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    side: &S,
+    at: At,
+    orientation: usize,
+    parent_row: Option<ParentRow>,
+) -> usize {
+    let s = grid.stride;
+    let w = s - 2;
+    let (fi, i) = (at.flag, at.index);
+    let state = |df: usize, j: usize| sign_state(grid.flags[df], side, j);
+    let signs = contexts.choice.neighbour_signs as usize;
+    let left = state(fi - 1, i.wrapping_sub(1));
+    let up = state(fi - s, i.wrapping_sub(w));
+    match contexts.coder {
+        Coder::V1 => (orientation * 3 + left * signs) * 3 + up * signs,
+        Coder::V2 => {
+            let balance = |a: usize, b: usize| {
+                let v = SIGN_VALUE[a] + SIGN_VALUE[b];
+                (v.signum() + 1) as usize
+            };
+            let h = balance(left, state(fi + 1, i + 1));
+            let v = balance(up, state(fi + s, i + w));
+            let parent = parent_row
+                .and_then(|pr| Some((pr, pr.column(at.x)?)))
+                .map_or(0, |(pr, px)| {
+                    state(pr.flag + px, pr.index + px) * contexts.choice.parent as usize
+                });
+            ((orientation * 3 + h * signs) * 3 + v * signs) * 3 + parent
+        }
+    }
+}
+
+/// Sign states (0 none, 1 +, 2 −) as numbers.
+const SIGN_VALUE: [i32; 3] = [0, 1, -1];
+
+/// Sign state of a neighbour for sign contexts: 0 = not significant (or outside the
+/// array: border flags are zero, so `j` is then never used), 1 = +, 2 = −.
+#[inline]
+fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
+    if flags & SIG == 0 {
+        0
+    } else if side.is_negative(j) {
+        2
+    } else {
+        1
+    }
+}
+
+/// Where a coefficient is.
+#[derive(Clone, Copy)]
+pub(super) struct At {
+    /// Index in the flag grid.
+    pub(super) flag: usize,
+    /// Index in the coefficient array.
+    pub(super) index: usize,
+    /// Column in its band.
+    pub(super) x: usize,
+    /// Whether all 8 neighbours are inside the array.
+    pub(super) interior: bool,
+}
+
+/// The significance and zerotree model indices of insignificant coefficient `at` at own
+/// plane `p`.
+#[inline]
+pub(super) fn dominant_contexts<S: Side>(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    side: &S,
+    at: At,
+    class: usize,
+    p: u32,
+    parent_row: Option<ParentRow>,
+) -> (usize, usize) {
+    let choice = contexts.choice;
+    let parent_flags = parent_row
+        .and_then(|pr| Some((pr, pr.column(at.x)?)))
+        .map(|(pr, px)| (pr, px, grid.flags[pr.flag + px]))
+        .filter(|&(_, _, f)| f & SIG != 0 && choice.parent);
+    match contexts.coder {
+        Coder::V1 => {
+            let parent_sig = parent_flags.is_some() as usize;
+            let (hv, diag) = grid.neighbourhood(at.flag);
+            let (hv, diag) = (
+                hv * choice.neighbours as usize,
+                diag * choice.neighbours as usize,
+            );
+            (
+                ((class * 3 + hv) * 2 + diag) * 2 + parent_sig,
+                (class * 3 + hv) * 2 + parent_sig,
+            )
+        }
+        Coder::V2 => {
+            let activity = if choice.neighbours {
+                log_level(neighbour_sum(grid, side.known(), at) >> p, ACTIVITY_LEVELS)
+            } else {
+                0
+            };
+            let parent = parent_flags.map_or(0, |(pr, px, _)| {
+                let known = side.known()[pr.index + px].unsigned_abs();
+                1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
+            });
+            let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
+            (ctx, ctx)
+        }
+    }
+}
+
+/// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
+/// ones counted twice.
+#[inline]
+fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
+    // The grid's rows are the coefficient rows with a border column on each side.
+    let w = grid.stride - 2;
+    let i = at.index;
+    let m = |j: usize| u64::from(known[j].unsigned_abs());
+    if at.interior {
+        return 2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
+            + m(i - w - 1)
+            + m(i - w + 1)
+            + m(i + w - 1)
+            + m(i + w + 1);
+    }
+    // On the array's edge: the border flags say which neighbours exist.
+    let (s, w) = (grid.stride as isize, w as isize);
+    let mut sum = 0u64;
+    for (df, di, weight) in [
+        (-1, -1, 2),
+        (1, 1, 2),
+        (-s, -w, 2),
+        (s, w, 2),
+        (-s - 1, -w - 1, 1),
+        (-s + 1, -w + 1, 1),
+        (s - 1, w - 1, 1),
+        (s + 1, w + 1, 1),
+    ] {
+        if grid.flags[at.flag.wrapping_add_signed(df)] & SIG != 0 {
+            sum += weight * m(i.wrapping_add_signed(di));
+        }
+    }
+    sum
+}
+
+/// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
+#[inline]
+pub(super) fn refinement_context(
+    contexts: &Contexts,
+    grid: &FlagGrid,
+    known: &[i32],
+    at: At,
+    p: u32,
+    age: usize,
+    class: usize,
+) -> usize {
+    let choice = contexts.choice;
+    let (busy, levels) = match contexts.coder {
+        Coder::V1 => {
+            let (hv, diag) = grid.neighbourhood(at.flag);
+            ((hv + diag > 1) as usize, 2)
+        }
+        // Coder 2: the neighbours' known magnitudes at plane `p`.
+        Coder::V2 => {
+            let level = match neighbour_sum(grid, known, at) >> p {
+                0 => 0,
+                1..16 => 1,
+                16..64 => 2,
+                _ => 3,
+            };
+            (level, 4)
+        }
+    };
+    ((age * levels) + busy * choice.neighbours as usize) * 4 + class * choice.subband_class as usize
+}
+
+/// `0` for 0, else 1 + ⌊log2 a⌋, at most `levels − 1`.
+#[inline]
+fn log_level(a: u64, levels: usize) -> usize {
+    ((64 - a.leading_zeros()) as usize).min(levels - 1)
+}

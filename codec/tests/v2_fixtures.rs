@@ -1,0 +1,106 @@
+//! Version-2 `.ezw` files made by the first version-2 coder ([`Coder::V1`]: the context
+//! models before the header's "coder 2" bit, commit 6eaf062) must decode forever to
+//! exactly what that coder's decoder made of them, whole and as prefixes.
+//!
+//! `fixtures/v2/NAME.ezw` is the file and `NAME.decoded` its decoded samples, raw
+//! little-endian (f32 as their bits); `NAME.prefixN.decoded` is the decode of its first
+//! N bytes. The files are 32 × 24 synthetic terrain (a sine relief with noise).
+
+use std::path::PathBuf;
+
+use wavemesh_codec::ezw::Coder;
+use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
+
+fn fixture(name: &str) -> Vec<u8> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/v2")
+        .join(name);
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn raw(samples: &Samples) -> Vec<u8> {
+    match samples {
+        Samples::U8(v) => v.clone(),
+        Samples::U16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Samples::I16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Samples::I32(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Samples::F32(v) => v.iter().flat_map(|x| x.to_bits().to_le_bytes()).collect(),
+    }
+}
+
+#[test]
+fn every_v2_fixture_decodes_to_its_recorded_samples() {
+    for (name, mode) in [
+        ("i16_nodata_georef_lossless", Mode::Lossless),
+        ("i16_97_200_bytes", Mode::Lossy),
+        ("u16_max_error_2", Mode::MaxError),
+        ("f32_nan_lossless", Mode::Lossless),
+        ("f32_grid_lossless", Mode::Lossless),
+    ] {
+        let file = fixture(&format!("{name}.ezw"));
+        assert_eq!(u16::from_le_bytes([file[8], file[9]]), 2, "{name} version");
+        let decoded = decode(&file, &DecodeOptions::default()).unwrap();
+        assert_eq!((decoded.raster.width, decoded.raster.height), (32, 24));
+        assert_eq!(decoded.header.mode, mode, "{name} mode");
+        assert_eq!(decoded.header.coder, Coder::V1, "{name} coder");
+        assert!(decoded.complete, "{name} complete");
+        assert!(decoded.damage.is_none(), "{name} damage");
+        assert_eq!(
+            raw(&decoded.raster.samples),
+            fixture(&format!("{name}.decoded")),
+            "{name} samples"
+        );
+    }
+}
+
+#[test]
+fn a_v2_prefix_decodes_to_its_recorded_samples() {
+    let file = fixture("i16_nodata_georef_lossless.ezw");
+    let options = DecodeOptions {
+        max_bytes: Some(300),
+        ..DecodeOptions::default()
+    };
+    let decoded = decode(&file, &options).unwrap();
+    assert!(!decoded.complete);
+    assert_eq!(
+        raw(&decoded.raster.samples),
+        fixture("i16_nodata_georef_lossless.prefix300.decoded")
+    );
+    // The prefix is a coarser DEM, not the whole one.
+    assert_ne!(
+        fixture("i16_nodata_georef_lossless.prefix300.decoded"),
+        fixture("i16_nodata_georef_lossless.decoded")
+    );
+}
+
+#[test]
+fn v2_nodata_and_georeferencing_survive() {
+    let decoded = decode(
+        &fixture("i16_nodata_georef_lossless.ezw"),
+        &DecodeOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(decoded.raster.nodata, Some(-32768.0));
+    let georef = decoded.raster.georef.expect("georeferenced");
+    assert_eq!(georef.geotransform[0], 11.0);
+    assert_eq!(georef.geotransform[1], 1.0 / 1200.0);
+    let voids = match &decoded.raster.samples {
+        Samples::I16(v) => v.iter().filter(|&&x| x == -32768).count(),
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(voids, 40);
+    let nan = decode(&fixture("f32_nan_lossless.ezw"), &DecodeOptions::default()).unwrap();
+    assert!(nan.raster.nodata.is_some_and(f64::is_nan));
+}
+
+#[test]
+fn new_files_say_coder_2_and_decode_exactly() {
+    let file = fixture("i16_nodata_georef_lossless.ezw");
+    let old = decode(&file, &DecodeOptions::default()).unwrap();
+    let options = wavemesh_codec::EncodeOptions::new(wavemesh_codec::Quality::Lossless, None);
+    let new = wavemesh_codec::encode(&old.raster, &options).unwrap();
+    let redecoded = decode(&new.bytes, &DecodeOptions::default()).unwrap();
+    assert_eq!(redecoded.header.coder, Coder::V2);
+    assert_eq!(redecoded.raster, old.raster);
+    assert_ne!(new.bytes, file, "coder 2 makes other bytes");
+}
