@@ -165,6 +165,7 @@ impl Header {
             nodata: None,
             valid_range: (0.0, 0.0),
             top_plane: None,
+            coder: crate::ezw::Coder::default(),
             bands: Vec::new(),
             payload_len: 0,
             payload_truncated: false,
