@@ -15,6 +15,7 @@ use crate::lod::Surface;
 use crate::memory;
 use crate::mesh::cells::SplitRule;
 use crate::mesh::greedy::{greedy_mesh, GreedyError, GreedyTarget};
+use crate::mesh::qem::{qem_mesh, QemError, QemTarget};
 use crate::mesh::rasterise::mesh_error;
 use crate::mesh::{GridMesh, MeshTarget, Mesher};
 
@@ -32,6 +33,8 @@ pub enum Method {
     Greedy,
     /// Greedy insertion with Delaunay flips only (Delatin's algorithm, ours).
     Delaunay,
+    /// QEM edge contraction straight on the height map (seed paper 000).
+    Qem,
     /// The `delatin` crate (budgets searched over its max error).
     Delatin,
     /// The `martini` crate (2^k + 1 grids; budgets searched over its max error).
@@ -40,10 +43,11 @@ pub enum Method {
 
 impl Method {
     /// Every method, ours first.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::Zerotree,
         Method::Greedy,
         Method::Delaunay,
+        Method::Qem,
         Method::Delatin,
         Method::Martini,
     ];
@@ -54,6 +58,7 @@ impl Method {
             Method::Zerotree => "zerotree",
             Method::Greedy => "greedy",
             Method::Delaunay => "delaunay",
+            Method::Qem => "qem",
             Method::Delatin => "delatin",
             Method::Martini => "martini",
         }
@@ -76,6 +81,9 @@ pub enum MeshersError {
     /// The greedy mesher refused the grid.
     #[error("{0}")]
     Greedy(#[from] GreedyError),
+    /// The QEM mesher refused the grid.
+    #[error("{0}")]
+    Qem(#[from] QemError),
     /// The zerotree mesher's encode or decode failed.
     #[error("{0}")]
     Codec(#[from] CodecError),
@@ -142,6 +150,13 @@ pub fn build(
             greedy_target,
             None,
         )?),
+        Method::Qem => {
+            let target = match budget {
+                Budget::Triangles(n) => QemTarget::Triangles(n),
+                Budget::MaxError(e) => QemTarget::MaxError(e),
+            };
+            Ok(qem_mesh(w, h, &surface.heights, &surface.valid, target)?.mesh)
+        }
         Method::Zerotree => zerotree(raster, surface, budget),
         Method::Delatin | Method::Martini => {
             if surface.valid.not_any() || !surface.valid.all() {

@@ -1,4 +1,4 @@
-//! `mesh --method greedy|delaunay` (meshes straight from the DEM) and `compare-meshers`
+//! `mesh --method greedy|delaunay|qem` (meshes straight from the DEM) and `compare-meshers`
 //! (every mesher at the same triangle budgets, as a table, JSON and a log–log plot).
 
 use std::path::{Path, PathBuf};
@@ -24,6 +24,8 @@ pub enum MethodArg {
     Greedy,
     /// Greedy insertion with Delaunay flips only (Delatin's algorithm).
     Delaunay,
+    /// QEM edge contraction straight on the height map.
+    Qem,
 }
 
 impl MethodArg {
@@ -32,6 +34,7 @@ impl MethodArg {
             MethodArg::Zerotree => Method::Zerotree,
             MethodArg::Greedy => Method::Greedy,
             MethodArg::Delaunay => Method::Delaunay,
+            MethodArg::Qem => Method::Qem,
         }
     }
 }
@@ -117,6 +120,8 @@ pub enum MethodName {
     Greedy,
     /// Greedy insertion with Delaunay flips only.
     Delaunay,
+    /// QEM edge contraction on the height map.
+    Qem,
     /// The delatin crate.
     Delatin,
     /// The martini crate.
@@ -129,6 +134,7 @@ impl From<MethodName> for Method {
             MethodName::Zerotree => Method::Zerotree,
             MethodName::Greedy => Method::Greedy,
             MethodName::Delaunay => Method::Delaunay,
+            MethodName::Qem => Method::Qem,
             MethodName::Delatin => Method::Delatin,
             MethodName::Martini => Method::Martini,
         }
