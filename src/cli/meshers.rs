@@ -146,7 +146,11 @@ pub struct CompareArgs {
     /// Input DEM.
     input: PathBuf,
     /// Comma-separated triangle budgets.
-    #[arg(long, value_delimiter = ',', required_unless_present = "mesh_errors")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required_unless_present_any = ["mesh_errors", "qem_memory"]
+    )]
     triangles: Vec<usize>,
     /// Comma-separated height tolerances (data units): also the mesh of each method
     /// within each (Martini and Delatin at their max-error parameter).
@@ -164,6 +168,10 @@ pub struct CompareArgs {
     /// Write a log–log SVG of RMSE against triangles here.
     #[arg(long, value_name = "SVG")]
     plot: Option<PathBuf>,
+    /// Print the seed paper's memory table instead (QEM meshes at 100 %, 10 % and 1 % of
+    /// the grid's triangles: triangle-mesh bytes against raster + flag map, heap peak).
+    #[arg(long, conflicts_with_all = ["triangles", "mesh_errors", "methods", "plot"])]
+    qem_memory: bool,
     #[command(flatten)]
     input_args: InputArgs,
 }
@@ -221,6 +229,9 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             ))
         })?;
     }
+    if args.qem_memory {
+        return qem_memory(args, &raster);
+    }
     let (rows, skipped) =
         with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));
     if let Some(path) = &args.plot {
@@ -254,6 +265,42 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         for s in &skipped {
             println!("{}: skipped ({})", s.method.name(), s.reason);
         }
+    }
+    Ok(())
+}
+
+/// `compare-meshers --qem-memory`: the seed paper's Table 1 for one DEM.
+fn qem_memory(args: &CompareArgs, raster: &Raster) -> Result<(), CliError> {
+    let rows = with_progress("simplifying", || meshers::qem_memory_table(raster))
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    if args.json {
+        let report = serde_json::json!({
+            "schema_version": SCHEMA_VERSION,
+            "command": "compare-meshers",
+            "input": args.input,
+            "width": raster.width,
+            "height": raster.height,
+            "qem_memory": rows,
+        });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("reports serialise")
+        );
+        return Ok(());
+    }
+    let name = args.input.file_name().unwrap_or_default().to_string_lossy();
+    println!("| DEM | kept | triangles | vertices | triangle mesh KB | raster + flag map KB | measured peak KB | build s |\n|---|---:|---:|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        println!(
+            "| {name} | {} % | {} | {} | {} | {} | {} | {:.2} |",
+            r.percent,
+            r.triangles,
+            r.vertices,
+            r.mesh_bytes / 1024,
+            r.raster_and_flags_bytes / 1024,
+            r.peak_heap_bytes / 1024,
+            r.build_seconds
+        );
     }
     Ok(())
 }
