@@ -108,3 +108,29 @@ fn shared_voids_are_left_out_and_the_max_error_holds() {
     assert_eq!(within["uncovered"], exact["uncovered"]);
     assert!(within["triangles"].as_u64().unwrap() < exact["triangles"].as_u64().unwrap() / 4);
 }
+
+#[test]
+fn shared_report_meshes_puts_qem_beside_the_peers() {
+    let test = "shared_report_meshes_puts_qem_beside_the_peers";
+    let Some(dem) = shared_dem(test) else {
+        return;
+    };
+    let report = json(&[
+        "report",
+        s(&dem),
+        "--meshes",
+        "--only",
+        "grandcanyon_8bit",
+        "--json",
+    ]);
+    let rows = report["meshes"].as_array().unwrap();
+    assert!(rows.len() >= 10, "{}", rows.len());
+    for r in rows {
+        let (qem, peer) = (
+            r["qem_triangles"].as_u64().unwrap(),
+            r["peer_triangles"].as_u64().unwrap(),
+        );
+        assert!(qem <= peer && qem + 2 >= peer.min(2 * 255 * 255), "{r}");
+        assert!(num(&r["qem_rmse"]) <= num(&r["qem_max_error"]));
+    }
+}

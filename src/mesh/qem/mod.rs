@@ -87,7 +87,36 @@ pub fn qem_mesh(
     check_grid(&grid)?;
     let mut simplifier = Simplifier::new(grid, target);
     simplifier.run(target);
-    Ok(simplifier.finish())
+    Ok(simplifier.snapshot())
+}
+
+/// The meshes of one simplification at every triangle budget of `budgets` (in the
+/// order given): the contraction order does not depend on the budget, so one run
+/// stops at each budget in turn and extracts the mesh there.
+pub fn qem_meshes_within(
+    width: usize,
+    height: usize,
+    heights: &[f64],
+    valid: &BitSlice<u64, Lsb0>,
+    budgets: &[usize],
+) -> Result<Vec<GridMesh>, QemError> {
+    let grid = Grid {
+        width,
+        height,
+        heights,
+        valid,
+    };
+    check_grid(&grid)?;
+    let mut order: Vec<usize> = (0..budgets.len()).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(budgets[k]));
+    let first = QemTarget::Triangles(budgets.iter().copied().max().unwrap_or(0));
+    let mut simplifier = Simplifier::new(grid, first);
+    let mut meshes = vec![GridMesh::default(); budgets.len()];
+    for k in order {
+        simplifier.run(QemTarget::Triangles(budgets[k]));
+        meshes[k] = simplifier.snapshot().mesh;
+    }
+    Ok(meshes)
 }
 
 fn check_grid(grid: &Grid) -> Result<(), QemError> {
@@ -170,12 +199,15 @@ impl<'a> Simplifier<'a> {
 
     /// Contracts until `target` is met or no contraction is valid.
     fn run(&mut self, target: QemTarget) {
-        while let Some(Reverse(entry)) = self.queue.pop() {
+        loop {
             if let QemTarget::Triangles(n) = target {
                 if self.triangles <= n {
                     return;
                 }
             }
+            let Some(Reverse(entry)) = self.queue.pop() else {
+                return;
+            };
             let (v, cost) = (entry.vertex, f64::from_bits(entry.cost_bits));
             if !self.clusters.is_survivor(v) || self.queued_cost[v as usize] != cost {
                 continue; // stale: contracted, or queued again since
@@ -279,18 +311,18 @@ impl<'a> Simplifier<'a> {
         self.fan.link = link;
     }
 
-    /// Records the merger directions in the flag map and extracts the mesh from it.
-    fn finish(mut self) -> QemMesh {
+    /// Records the merger directions in the flag map and extracts the mesh from it
+    /// (simplification may go on afterwards).
+    fn snapshot(&mut self) -> QemMesh {
         let clusters = &mut self.clusters;
         let roots: Vec<u32> = (0..self.grid.len() as u32)
             .map(|s| clusters.find_merger(s))
             .collect();
         self.flags.record_mergers(|s| roots[s]);
         drop(roots);
-        let mesh = extract_mesh(&self.grid, &self.flags);
         QemMesh {
-            mesh,
-            flags: self.flags,
+            mesh: extract_mesh(&self.grid, &self.flags),
+            flags: self.flags.clone(),
         }
     }
 }

@@ -163,7 +163,7 @@ fn the_flag_map_alone_gives_the_mesh_the_contractions_left() {
     let roots: Vec<u32> = (0..w * h)
         .map(|s| simplifier.clusters.find_merger(s as u32))
         .collect();
-    let out = simplifier.finish();
+    let out = simplifier.snapshot();
     assert_eq!(out.mesh.triangles.len(), counted);
     assert_eq!(out.flags.mergers(), roots);
     assert_eq!(out.flags.bytes(), (w * h).div_ceil(2));
@@ -184,4 +184,16 @@ fn bad_grids_are_refused() {
     assert_eq!(infinite.unwrap_err(), QemError::NotFinite(1));
     let short = qem_mesh(2, 2, &[0.0; 3], &valid, QemTarget::Triangles(1));
     assert!(matches!(short, Err(QemError::SizeMismatch(3, 4))));
+}
+
+#[test]
+fn one_run_gives_the_meshes_of_separate_runs() {
+    let (w, h) = (61, 47);
+    let (heights, valid) = voided(w, h);
+    let budgets = [300, 2000, 800];
+    let meshes = qem_meshes_within(w, h, &heights, &valid, &budgets).unwrap();
+    for (mesh, &budget) in meshes.iter().zip(&budgets) {
+        let alone = qem_mesh(w, h, &heights, &valid, QemTarget::Triangles(budget)).unwrap();
+        assert_eq!(*mesh, alone.mesh, "{budget}");
+    }
 }
