@@ -139,6 +139,12 @@ fn check_grid(grid: &Grid) -> Result<(), QemError> {
     }
 }
 
+/// The most triangles a surviving vertex may have around it: contractions that would
+/// give the merger more are refused. Without a cap, flat water collapses into fans of
+/// hundreds of slivers whose every evaluation walks them all (srtm3_utm32_f32 ran for
+/// over 14 minutes).
+pub const MAX_FAN: usize = 24;
+
 /// A vertex waiting in the heap: the cost of its cheapest contraction when queued.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 struct Entry {
@@ -165,6 +171,8 @@ struct Simplifier<'a> {
     /// The cost each vertex was last queued at (infinite: not queued).
     queued_cost: Vec<f64>,
     triangles: usize,
+    /// Triangles around each survivor.
+    fan_sizes: Vec<u8>,
     max_error: Option<f64>,
     fan: Fan,
     costs: Vec<(f64, u32)>,
@@ -173,7 +181,7 @@ struct Simplifier<'a> {
 impl<'a> Simplifier<'a> {
     fn new(grid: Grid<'a>, target: QemTarget) -> Simplifier<'a> {
         let flags = grid.flag_map();
-        let (quadrics, triangles) = initial_quadrics(&grid, &flags);
+        let (quadrics, fan_sizes, triangles) = initial_quadrics(&grid, &flags);
         let mut simplifier = Simplifier {
             grid,
             flags,
@@ -182,6 +190,7 @@ impl<'a> Simplifier<'a> {
             queue: BinaryHeap::new(),
             queued_cost: vec![f64::INFINITY; grid.len()],
             triangles,
+            fan_sizes,
             max_error: match target {
                 QemTarget::MaxError(e) => Some(e),
                 QemTarget::Triangles(_) => None,
@@ -251,7 +260,8 @@ impl<'a> Simplifier<'a> {
         costs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let found = costs.iter().find_map(|&(cost, merger)| {
             let removed = self.fan.contraction(self.grid.width, merger)?;
-            self.within_error(merger).then_some(Candidate {
+            let size = self.fan.triangles.len() + usize::from(self.fan_sizes[merger as usize]);
+            (size - 2 * removed <= MAX_FAN && self.within_error(merger)).then_some(Candidate {
                 merger,
                 cost,
                 removed,
@@ -299,6 +309,7 @@ impl<'a> Simplifier<'a> {
         let absorbed = self.quadrics[mergee as usize];
         self.quadrics[merger as usize].add(&absorbed);
         self.triangles -= candidate.removed;
+        self.record_fan_sizes(mergee, candidate);
         let link = std::mem::take(&mut self.fan.link);
         let mut merger_cost = f64::INFINITY;
         for &x in link.iter().filter(|&&x| x != merger) {
@@ -309,6 +320,23 @@ impl<'a> Simplifier<'a> {
         }
         self.enqueue(merger, merger_cost);
         self.fan.link = link;
+    }
+
+    /// Updates the fan sizes after `mergee` contracted onto the candidate's merger: the
+    /// merger takes the mergee's triangles but the removed ones, and the far corner of
+    /// each removed triangle loses it.
+    fn record_fan_sizes(&mut self, mergee: u32, candidate: Candidate) {
+        let merger = candidate.merger as usize;
+        let size = self.fan.triangles.len() + usize::from(self.fan_sizes[merger]);
+        self.fan_sizes[merger] = (size - 2 * candidate.removed) as u8;
+        self.fan_sizes[mergee as usize] = 0;
+        for &[x, y] in &self.fan.triangles {
+            if x == candidate.merger {
+                self.fan_sizes[y as usize] -= 1;
+            } else if y == candidate.merger {
+                self.fan_sizes[x as usize] -= 1;
+            }
+        }
     }
 
     /// Records the merger directions in the flag map and extracts the mesh from it
@@ -327,10 +355,11 @@ impl<'a> Simplifier<'a> {
     }
 }
 
-/// Every sample's quadric (the planes of its valid grid triangles) and the number of
-/// valid grid triangles.
-fn initial_quadrics(grid: &Grid, flags: &FlagMap) -> (Vec<Quadric>, usize) {
+/// Every sample's quadric (the planes of its valid grid triangles), its number of valid
+/// grid triangles, and the number of valid grid triangles.
+fn initial_quadrics(grid: &Grid, flags: &FlagMap) -> (Vec<Quadric>, Vec<u8>, usize) {
     let mut quadrics = vec![Quadric::default(); grid.len()];
+    let mut fan_sizes = vec![0u8; grid.len()];
     let mut triangles = 0;
     for y in 0..grid.height - 1 {
         for x in 0..grid.width - 1 {
@@ -343,11 +372,12 @@ fn initial_quadrics(grid: &Grid, flags: &FlagMap) -> (Vec<Quadric>, usize) {
                 let plane = Quadric::of_triangle(t.map(|s| grid.point(s))).expect("grid triangle");
                 for s in t {
                     quadrics[s as usize].add(&plane);
+                    fan_sizes[s as usize] += 1;
                 }
             }
         }
     }
-    (quadrics, triangles)
+    (quadrics, fan_sizes, triangles)
 }
 
 /// The paper's extraction: every valid grid triangle mapped through `find_merger`, kept

@@ -24,7 +24,7 @@ fn valid_grid_triangles(w: usize, h: usize, heights: &[f64], valid: &BitVec<u64,
         heights,
         valid,
     };
-    initial_quadrics(&grid, &grid.flag_map()).1 as i64
+    initial_quadrics(&grid, &grid.flag_map()).2 as i64
 }
 
 /// Panics unless `mesh` is valid over `valid`: every triangle counter-clockwise seen
@@ -163,8 +163,18 @@ fn the_flag_map_alone_gives_the_mesh_the_contractions_left() {
     let roots: Vec<u32> = (0..w * h)
         .map(|s| simplifier.clusters.find_merger(s as u32))
         .collect();
+    let sizes = simplifier.fan_sizes.clone();
     let out = simplifier.snapshot();
     assert_eq!(out.mesh.triangles.len(), counted);
+    // The fan sizes kept along the way are the extracted mesh's, each within the cap.
+    let mut around = vec![0u8; w * h];
+    for t in &out.mesh.triangles {
+        for v in t {
+            around[out.mesh.vertices[*v as usize] as usize] += 1;
+        }
+    }
+    assert_eq!(around, sizes);
+    assert!(sizes.iter().all(|&k| usize::from(k) <= MAX_FAN));
     assert_eq!(out.flags.mergers(), roots);
     assert_eq!(out.flags.bytes(), (w * h).div_ceil(2));
 }
