@@ -1,4 +1,4 @@
-//! Greedy insertion against the `delatin` crate, side by side on the same heights: our
+//! Greedy insertion and QEM (`qem`) against the `delatin` crate, side by side on the same heights: our
 //! `greedy` (data-dependent flips), our `delaunay` (Delatin's algorithm) and the crate,
 //! each meshing to a height tolerance E, on the bundled sample
 //! `samples/jacksboro_fault.tif` (403 × 344) and, when `../shared/dem` is present, on
@@ -40,7 +40,12 @@ fn meshers(c: &mut Criterion) {
         let mut group = c.benchmark_group(format!("meshers/{name}"));
         group.sampling_mode(SamplingMode::Flat).sample_size(10);
         for e in [10.0, 2.0] {
-            for method in [Method::Greedy, Method::Delaunay, Method::Delatin] {
+            for method in [
+                Method::Greedy,
+                Method::Delaunay,
+                Method::Qem,
+                Method::Delatin,
+            ] {
                 let mesh = build(method, &raster, &surface, Budget::MaxError(e)).unwrap();
                 eprintln!(
                     "{name} {} E={e}: {} triangles",

@@ -15,6 +15,7 @@ use crate::lod::Surface;
 use crate::memory;
 use crate::mesh::cells::SplitRule;
 use crate::mesh::greedy::{greedy_mesh, GreedyError, GreedyTarget};
+use crate::mesh::qem::{qem_mesh, QemError, QemTarget};
 use crate::mesh::rasterise::mesh_error;
 use crate::mesh::{GridMesh, MeshTarget, Mesher};
 
@@ -32,6 +33,8 @@ pub enum Method {
     Greedy,
     /// Greedy insertion with Delaunay flips only (Delatin's algorithm, ours).
     Delaunay,
+    /// QEM edge contraction straight on the height map (seed paper 000).
+    Qem,
     /// The `delatin` crate (budgets searched over its max error).
     Delatin,
     /// The `martini` crate (2^k + 1 grids; budgets searched over its max error).
@@ -40,10 +43,11 @@ pub enum Method {
 
 impl Method {
     /// Every method, ours first.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::Zerotree,
         Method::Greedy,
         Method::Delaunay,
+        Method::Qem,
         Method::Delatin,
         Method::Martini,
     ];
@@ -54,6 +58,7 @@ impl Method {
             Method::Zerotree => "zerotree",
             Method::Greedy => "greedy",
             Method::Delaunay => "delaunay",
+            Method::Qem => "qem",
             Method::Delatin => "delatin",
             Method::Martini => "martini",
         }
@@ -76,6 +81,9 @@ pub enum MeshersError {
     /// The greedy mesher refused the grid.
     #[error("{0}")]
     Greedy(#[from] GreedyError),
+    /// The QEM mesher refused the grid.
+    #[error("{0}")]
+    Qem(#[from] QemError),
     /// The zerotree mesher's encode or decode failed.
     #[error("{0}")]
     Codec(#[from] CodecError),
@@ -142,6 +150,13 @@ pub fn build(
             greedy_target,
             None,
         )?),
+        Method::Qem => {
+            let target = match budget {
+                Budget::Triangles(n) => QemTarget::Triangles(n),
+                Budget::MaxError(e) => QemTarget::MaxError(e),
+            };
+            Ok(qem_mesh(w, h, &surface.heights, &surface.valid, target)?.mesh)
+        }
         Method::Zerotree => zerotree(raster, surface, budget),
         Method::Delatin | Method::Martini => {
             if surface.valid.not_any() || !surface.valid.all() {
@@ -402,4 +417,60 @@ pub fn error_plot_svg(rows: &[MeshRow], title: &str) -> Result<String, MeshersEr
         root.present().map_err(|e| plot_error(e.to_string()))?;
     }
     Ok(svg)
+}
+
+/// One row of the seed paper's Table 1 for a QEM mesh: its size as a triangle mesh
+/// against the height raster and flag map it is extracted from.
+#[derive(Debug, Clone, Serialize)]
+pub struct QemMemoryRow {
+    /// Share of the grid's triangles kept, percent.
+    pub percent: f64,
+    /// Triangles of the mesh.
+    pub triangles: usize,
+    /// Vertices of the mesh.
+    pub vertices: usize,
+    /// The mesh as the paper counts a triangle mesh with adjacency: 24 bytes a triangle,
+    /// 17 a vertex.
+    pub mesh_bytes: usize,
+    /// The height raster at 4 bytes a sample (as the paper) and the 4-bit flag map.
+    pub raster_and_flags_bytes: usize,
+    /// Heap peak of the simplification (quadrics, merger pointers, heap, flag map,
+    /// extracted mesh), bytes.
+    pub peak_heap_bytes: usize,
+    /// Seconds to simplify and extract.
+    pub build_seconds: f64,
+}
+
+/// The paper's Table 1 for `raster`: QEM meshes keeping 100 %, 10 % and 1 % of the
+/// grid's triangles.
+pub fn qem_memory_table(raster: &Raster) -> Result<Vec<QemMemoryRow>, MeshersError> {
+    let surface = Surface::of(raster);
+    let (w, h) = (surface.width, surface.height);
+    let all = 2 * w.saturating_sub(1) * h.saturating_sub(1);
+    let mut rows = Vec::new();
+    for percent in [100.0, 10.0, 1.0] {
+        let budget = (all as f64 * percent / 100.0).round() as usize;
+        let start = Instant::now();
+        let (mesh, peak) = memory::measure(|| {
+            qem_mesh(
+                w,
+                h,
+                &surface.heights,
+                &surface.valid,
+                QemTarget::Triangles(budget),
+            )
+        });
+        let build_seconds = start.elapsed().as_secs_f64();
+        let out = mesh?;
+        rows.push(QemMemoryRow {
+            percent,
+            triangles: out.mesh.triangles.len(),
+            vertices: out.mesh.vertices.len(),
+            mesh_bytes: 24 * out.mesh.triangles.len() + 17 * out.mesh.vertices.len(),
+            raster_and_flags_bytes: 4 * w * h + out.flags.bytes(),
+            peak_heap_bytes: peak,
+            build_seconds,
+        });
+    }
+    Ok(rows)
 }

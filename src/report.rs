@@ -624,6 +624,12 @@ pub struct MeshComparison {
     pub ours_at_parameter_triangles: usize,
     /// Its max error (never above the parameter).
     pub ours_at_parameter_max_error: f64,
+    /// Our QEM mesh (`mesh --method qem`) within the peer's triangles: triangles.
+    pub qem_triangles: usize,
+    /// Its RMSE, data units.
+    pub qem_rmse: f64,
+    /// Its max error, data units.
+    pub qem_max_error: f64,
 }
 
 /// The `(x0, y0, width, height)` a peer region names on a `w × h` DEM, `None` for padded
@@ -688,7 +694,21 @@ pub fn compare_meshes(
         let measure = |mesh: &crate::mesh::GridMesh| {
             mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid)
         };
+        let budgets: Vec<usize> = rows
+            .iter()
+            .filter(|p| p.region == region)
+            .map(|p| p.triangles)
+            .collect();
+        let mut qem =
+            crate::mesh::qem::qem_meshes_within(w, h, &surface.heights, &surface.valid, &budgets)
+                .map_err(|e| ReportError::Codec {
+                    dem: dataset.name.clone(),
+                    message: e.to_string(),
+                })?
+                .into_iter();
         for peer in rows.iter().filter(|p| p.region == region) {
+            let qem_mesh = qem.next().expect("one QEM mesh per peer row");
+            let q = measure(&qem_mesh);
             let budget = mesher.build(
                 MeshTarget::TrianglesByTolerance(peer.triangles),
                 SplitRule::Zerotree,
@@ -731,6 +751,9 @@ pub fn compare_meshes(
                 zerotree_rmse: z.rmse,
                 ours_at_parameter_triangles: at_parameter.mesh.triangles.len(),
                 ours_at_parameter_max_error: a.max_error,
+                qem_triangles: qem_mesh.triangles.len(),
+                qem_rmse: q.rmse,
+                qem_max_error: q.max_error,
             });
         }
     }
@@ -761,11 +784,11 @@ fn crop_raster(
 /// The mesh comparison as a Markdown table.
 pub fn mesh_markdown(rows: &[MeshComparison]) -> String {
     let mut s = String::from(
-        "| DEM | region | peer | peer E | peer tris | peer RMSE | peer max err | ours tris | ours RMSE | RMSE ours/peer | ours max err | zerotree tris | zerotree RMSE | ours tris at E (max err) |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| DEM | region | peer | peer E | peer tris | peer RMSE | peer max err | ours tris | ours RMSE | RMSE ours/peer | ours max err | zerotree tris | zerotree RMSE | ours tris at E (max err) | qem tris | qem RMSE | RMSE qem/peer |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.4} | {:.3} | {:.3} | {} | {:.4} | {} ({:.3}) |\n",
+            "| {} | {} | {} | {} | {} | {:.4} | {:.3} | {} | {:.4} | {:.3} | {:.3} | {} | {:.4} | {} ({:.3}) | {} | {:.4} | {:.3} |\n",
             r.dem,
             r.region,
             r.mesher,
@@ -780,7 +803,10 @@ pub fn mesh_markdown(rows: &[MeshComparison]) -> String {
             r.zerotree_triangles,
             r.zerotree_rmse,
             r.ours_at_parameter_triangles,
-            r.ours_at_parameter_max_error
+            r.ours_at_parameter_max_error,
+            r.qem_triangles,
+            r.qem_rmse,
+            r.qem_rmse / r.peer_rmse
         ));
     }
     s

@@ -1,4 +1,4 @@
-//! `mesh --method greedy|delaunay` (meshes straight from the DEM) and `compare-meshers`
+//! `mesh --method greedy|delaunay|qem` (meshes straight from the DEM) and `compare-meshers`
 //! (every mesher at the same triangle budgets, as a table, JSON and a log–log plot).
 
 use std::path::{Path, PathBuf};
@@ -24,6 +24,8 @@ pub enum MethodArg {
     Greedy,
     /// Greedy insertion with Delaunay flips only (Delatin's algorithm).
     Delaunay,
+    /// QEM edge contraction straight on the height map.
+    Qem,
 }
 
 impl MethodArg {
@@ -32,6 +34,7 @@ impl MethodArg {
             MethodArg::Zerotree => Method::Zerotree,
             MethodArg::Greedy => Method::Greedy,
             MethodArg::Delaunay => Method::Delaunay,
+            MethodArg::Qem => Method::Qem,
         }
     }
 }
@@ -117,6 +120,8 @@ pub enum MethodName {
     Greedy,
     /// Greedy insertion with Delaunay flips only.
     Delaunay,
+    /// QEM edge contraction on the height map.
+    Qem,
     /// The delatin crate.
     Delatin,
     /// The martini crate.
@@ -129,6 +134,7 @@ impl From<MethodName> for Method {
             MethodName::Zerotree => Method::Zerotree,
             MethodName::Greedy => Method::Greedy,
             MethodName::Delaunay => Method::Delaunay,
+            MethodName::Qem => Method::Qem,
             MethodName::Delatin => Method::Delatin,
             MethodName::Martini => Method::Martini,
         }
@@ -140,7 +146,11 @@ pub struct CompareArgs {
     /// Input DEM.
     input: PathBuf,
     /// Comma-separated triangle budgets.
-    #[arg(long, value_delimiter = ',', required_unless_present = "mesh_errors")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required_unless_present_any = ["mesh_errors", "qem_memory"]
+    )]
     triangles: Vec<usize>,
     /// Comma-separated height tolerances (data units): also the mesh of each method
     /// within each (Martini and Delatin at their max-error parameter).
@@ -158,6 +168,10 @@ pub struct CompareArgs {
     /// Write a log–log SVG of RMSE against triangles here.
     #[arg(long, value_name = "SVG")]
     plot: Option<PathBuf>,
+    /// Print the seed paper's memory table instead (QEM meshes at 100 %, 10 % and 1 % of
+    /// the grid's triangles: triangle-mesh bytes against raster + flag map, heap peak).
+    #[arg(long, conflicts_with_all = ["triangles", "mesh_errors", "methods", "plot"])]
+    qem_memory: bool,
     #[command(flatten)]
     input_args: InputArgs,
 }
@@ -215,6 +229,9 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             ))
         })?;
     }
+    if args.qem_memory {
+        return qem_memory(args, &raster);
+    }
     let (rows, skipped) =
         with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));
     if let Some(path) = &args.plot {
@@ -248,6 +265,42 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         for s in &skipped {
             println!("{}: skipped ({})", s.method.name(), s.reason);
         }
+    }
+    Ok(())
+}
+
+/// `compare-meshers --qem-memory`: the seed paper's Table 1 for one DEM.
+fn qem_memory(args: &CompareArgs, raster: &Raster) -> Result<(), CliError> {
+    let rows = with_progress("simplifying", || meshers::qem_memory_table(raster))
+        .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
+    if args.json {
+        let report = serde_json::json!({
+            "schema_version": SCHEMA_VERSION,
+            "command": "compare-meshers",
+            "input": args.input,
+            "width": raster.width,
+            "height": raster.height,
+            "qem_memory": rows,
+        });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("reports serialise")
+        );
+        return Ok(());
+    }
+    let name = args.input.file_name().unwrap_or_default().to_string_lossy();
+    println!("| DEM | kept | triangles | vertices | triangle mesh KB | raster + flag map KB | measured peak KB | build s |\n|---|---:|---:|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        println!(
+            "| {name} | {} % | {} | {} | {} | {} | {} | {:.2} |",
+            r.percent,
+            r.triangles,
+            r.vertices,
+            r.mesh_bytes / 1024,
+            r.raster_and_flags_bytes / 1024,
+            r.peak_heap_bytes / 1024,
+            r.build_seconds
+        );
     }
     Ok(())
 }

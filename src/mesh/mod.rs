@@ -12,6 +12,7 @@ pub mod export;
 pub mod frame;
 pub mod greedy;
 pub mod pyramid;
+pub mod qem;
 pub mod rasterise;
 pub mod triangulate;
 
