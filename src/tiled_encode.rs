@@ -11,7 +11,7 @@ use thiserror::Error;
 use wavemesh_codec::tiles::{
     cut_to_budget, encode_band, tiled_head, EncodedTile, RasterInfo, TileSummary,
 };
-use wavemesh_codec::{CodecError, EncodeOptions, TileGrid};
+use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid};
 
 use crate::dem::{DemError, RowBands};
 
@@ -42,8 +42,8 @@ pub struct TiledEncoded {
 }
 
 /// Encodes the raster `bands` reads (described by `info`, see [`raster_info`]) as a
-/// tiled file on `grid` into `output` (written atomically), holding one tile row of
-/// samples at a time. Without a byte budget the
+/// tiled file on `grid` into `output` (written atomically), holding two tile rows of
+/// samples at a time: the one being coded and the next, read meanwhile. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
 /// coded up to about four times its share of the budget) until the budget is shared.
 pub fn encode_tiled(
@@ -56,16 +56,31 @@ pub fn encode_tiled(
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
+    let mut band = read_band(bands, grid, 0)?;
     for row in 0..grid.rows() {
-        let y = row * grid.tile_height;
-        let band = bands.read_rows(y, grid.tile_height.min(grid.height - y))?;
-        for tile in encode_band(&band, grid, row, options)? {
+        // The next band is read while this one's tiles are coded.
+        let (tiles, next) = std::thread::scope(|scope| {
+            let reader = scope.spawn(|| {
+                (row + 1 < grid.rows())
+                    .then(|| read_band(bands, grid, row + 1))
+                    .transpose()
+            });
+            let tiles = encode_band(&band, grid, row, options);
+            (
+                tiles,
+                reader.join().expect("the band reader does not panic"),
+            )
+        });
+        for tile in tiles? {
             summaries.push(tile.summary.clone());
             if options.budget_bytes.is_some() {
                 kept.push(tile);
             } else {
                 spool.write_all(&tile.bytes)?;
             }
+        }
+        if let Some(next) = next? {
+            band = next;
         }
     }
     if let Some(budget) = options.budget_bytes {
@@ -84,6 +99,12 @@ pub fn encode_tiled(
         head_bytes: head.len() as u64,
         tiles: summaries,
     })
+}
+
+/// The rows of tile row `row`.
+fn read_band(bands: &mut RowBands, grid: &TileGrid, row: usize) -> Result<Raster, DemError> {
+    let y = row * grid.tile_height;
+    bands.read_rows(y, grid.tile_height.min(grid.height - y))
 }
 
 /// Writes the header and index, then the spooled tiles.

@@ -206,9 +206,7 @@ fn read_failure(path: &Path, error: DemError) -> CliError {
     let hint = match error {
         DemError::TooLarge { .. } => "raise --max-samples if the file is trusted",
         DemError::OverMemory { .. } => "raise --max-memory if the machine has it",
-        DemError::BandOverLimit { unit: "bytes", .. } => {
-            "raise --max-memory if the machine has it"
-        }
+        DemError::BandOverLimit { unit: "bytes", .. } => "raise --max-memory if the machine has it",
         DemError::BandOverLimit { .. } => "raise --max-samples if the file is trusted",
         DemError::LossyInput(_) => "--accept-lossy-input reads them anyway",
         other => return CliError::Dem(other),
