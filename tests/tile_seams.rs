@@ -78,6 +78,9 @@ fn tile_seams_on_shared_dems() {
             rmse(wb) / rmse(wi),
         );
         assert!(rmse(border) <= 2.0 * rmse(interior), "{name}: border RMSE");
-        assert!(rmse(all) <= 1.2 * rmse(untiled), "{name}: PSNR loss over 1.6 dB");
+        assert!(
+            rmse(all) <= 1.2 * rmse(untiled),
+            "{name}: PSNR loss over 1.6 dB"
+        );
     }
 }
