@@ -41,7 +41,8 @@ pub struct TiledEncoded {
     pub tiles: Vec<TileSummary>,
 }
 
-/// Encodes the raster `bands` reads (described by `info`, see [`raster_info`]) as a
+/// Encodes the raster `bands` reads (described by `info`: its [`RowBands::info`],
+/// perhaps with metadata left out) as a
 /// tiled file on `grid` into `output` (written atomically), holding two tile rows of
 /// samples at a time: the one being coded and the next, read meanwhile. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
@@ -112,17 +113,4 @@ fn copy_out(head: &[u8], spool: &mut File, out: &mut dyn Write) -> io::Result<()
     out.write_all(head)?;
     io::copy(spool, out)?;
     Ok(())
-}
-
-/// The codec's description of the raster `bands` reads.
-pub fn raster_info(bands: &RowBands) -> RasterInfo {
-    let info = bands.info();
-    RasterInfo {
-        width: info.width,
-        height: info.height,
-        sample_type: info.sample_type,
-        nodata: info.nodata,
-        georef: info.georef.clone(),
-        metadata: info.metadata.clone(),
-    }
 }

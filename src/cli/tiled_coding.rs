@@ -7,7 +7,7 @@ use std::path::Path;
 
 use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemInfo, RowBands, TiledGeoTiffWriter};
-use wavemesh::tiled_encode::{encode_tiled, raster_info, TiledEncodeError};
+use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{decode_window, DecodeOptions, TileGrid, Window};
 
@@ -21,7 +21,7 @@ pub fn encode(
     grid: &TileGrid,
     to_stdout: bool,
 ) -> Result<(), CliError> {
-    let mut info = raster_info(bands);
+    let mut info = bands.info().clone();
     if args.no_metadata_items {
         info.metadata.items.clear();
     }

@@ -7,41 +7,14 @@
 
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Georef, Metadata, Raster, SampleType, Samples};
+use wavemesh_codec::{Raster, SampleType, Samples};
 
 use super::tiff_chunks::ChunkReader;
 use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, SourceFile};
 
-/// Everything [`read_dem`] puts in a [`Raster`] besides the samples.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DemInfo {
-    /// Columns.
-    pub width: usize,
-    /// Rows.
-    pub height: usize,
-    /// Type of every sample.
-    pub sample_type: SampleType,
-    /// The value marking voids, if any (NaN for float voids).
-    pub nodata: Option<f64>,
-    /// Georeferencing, if the file has any.
-    pub georef: Option<Georef>,
-    /// GDAL metadata: scale, offset, description, units, items.
-    pub metadata: Metadata,
-}
-
-impl DemInfo {
-    /// The description of `raster` (its samples left out).
-    pub fn of(raster: &Raster) -> DemInfo {
-        DemInfo {
-            width: raster.width,
-            height: raster.height,
-            sample_type: raster.sample_type(),
-            nodata: raster.nodata,
-            georef: raster.georef.clone(),
-            metadata: raster.metadata.clone(),
-        }
-    }
-}
+/// Everything [`read_dem`] puts in a [`Raster`] besides the samples: the codec's
+/// description of a raster, the same one a tiled `.ezw` file's header holds.
+pub type DemInfo = wavemesh_codec::tiles::RasterInfo;
 
 /// Where a [`RowBands`] gets its rows.
 enum BandSource {

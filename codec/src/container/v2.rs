@@ -71,14 +71,7 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
             Wavelet::Cdf97 => header.coefficient_step,
         },
     );
-    if max_error_listed(header) {
-        write_number(&mut body, header.max_error);
-    }
-    write_number(&mut body, header.valid_range.0);
-    write_number(&mut body, header.valid_range.1);
-    if let Some(nodata) = header.nodata {
-        write_number(&mut body, nodata);
-    }
+    write_values(&mut body, header);
     body.push(header.top_plane.map_or(0xFF, |p| p));
     if bands_listed(header) {
         for &(shift, scale) in &header.bands {
@@ -100,12 +93,7 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
         &mut body,
         super::framed_len(header.ladder_bytes().len()) as u64,
     );
-    if let Some(georef) = &header.georef {
-        write_georef(&mut body, georef);
-    }
-    if !header.metadata.is_empty() {
-        write_metadata(&mut body, &header.metadata);
-    }
+    write_gis(&mut body, header);
     finish(body)
 }
 
@@ -122,22 +110,33 @@ fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
     ]);
     write_varint(&mut body, tiling.tile_width.into());
     write_varint(&mut body, tiling.tile_height.into());
-    if max_error_listed(header) {
-        write_number(&mut body, header.max_error);
-    }
-    write_number(&mut body, header.valid_range.0);
-    write_number(&mut body, header.valid_range.1);
-    if let Some(nodata) = header.nodata {
-        write_number(&mut body, nodata);
-    }
+    write_values(&mut body, header);
     write_varint(&mut body, tiling.index_len);
+    write_gis(&mut body, header);
+    finish(body)
+}
+
+/// The error bound (when listed), the valid range and the nodata value (when there is
+/// one), as both layouts have them.
+fn write_values(body: &mut Vec<u8>, header: &Header) {
+    if max_error_listed(header) {
+        write_number(body, header.max_error);
+    }
+    write_number(body, header.valid_range.0);
+    write_number(body, header.valid_range.1);
+    if let Some(nodata) = header.nodata {
+        write_number(body, nodata);
+    }
+}
+
+/// The georeferencing and metadata block that end both layouts (each when present).
+fn write_gis(body: &mut Vec<u8>, header: &Header) {
     if let Some(georef) = &header.georef {
-        write_georef(&mut body, georef);
+        write_georef(body, georef);
     }
     if !header.metadata.is_empty() {
-        write_metadata(&mut body, &header.metadata);
+        write_metadata(body, &header.metadata);
     }
-    finish(body)
 }
 
 /// Prepends the magic, version and header length, and appends the CRC.
@@ -239,18 +238,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         Wavelet::Int53 => (r.number()?, 1.0),
         Wavelet::Cdf97 => (1.0, r.number()?),
     };
-    let max_error = if flags & flag::MAX_ERROR != 0 {
-        r.number()?
-    } else {
-        implied_max_error(mode)
-    };
-    let min = r.number()?;
-    let max = r.number()?;
-    let nodata = if flags & flag::NODATA != 0 {
-        Some(r.number()?)
-    } else {
-        None
-    };
+    let (max_error, (min, max), nodata) = read_values(r, flags, mode)?;
     let top_plane = match r.u8()? {
         0xFF => None,
         p => Some(p),
@@ -275,16 +263,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         (0, 0.0)
     };
     let ladder_len = r.varint_u32("ladder length")?;
-    let georef = if flags & flag::GEOREF != 0 {
-        Some(read_georef(r)?)
-    } else {
-        None
-    };
-    let metadata = if flags & flag::METADATA != 0 {
-        read_metadata(r)?
-    } else {
-        Metadata::default()
-    };
+    let (georef, metadata) = read_gis(r, flags)?;
     Ok(Header {
         width,
         height,
@@ -317,6 +296,41 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
     })
 }
 
+/// The error bound, valid range and nodata value of a header.
+type Values = (f64, (f64, f64), Option<f64>);
+
+/// The error bound (flag 7, else the mode's), the valid range and the nodata value
+/// (flag 0), in the order both header layouts have them.
+fn read_values(r: &mut Reader, flags: u64, mode: Mode) -> Result<Values, CodecError> {
+    let max_error = if flags & flag::MAX_ERROR != 0 {
+        r.number()?
+    } else {
+        implied_max_error(mode)
+    };
+    let valid_range = (r.number()?, r.number()?);
+    let nodata = if flags & flag::NODATA != 0 {
+        Some(r.number()?)
+    } else {
+        None
+    };
+    Ok((max_error, valid_range, nodata))
+}
+
+/// The georeferencing (flag 1) and metadata block (flag 2) that end both layouts.
+fn read_gis(r: &mut Reader, flags: u64) -> Result<(Option<Georef>, Metadata), CodecError> {
+    let georef = if flags & flag::GEOREF != 0 {
+        Some(read_georef(r)?)
+    } else {
+        None
+    };
+    let metadata = if flags & flag::METADATA != 0 {
+        read_metadata(r)?
+    } else {
+        Metadata::default()
+    };
+    Ok((georef, metadata))
+}
+
 /// The fields of a tiled file's header after `levels` (see [`write_tiled`]).
 fn parse_tiled(
     r: &mut Reader,
@@ -338,28 +352,9 @@ fn parse_tiled(
     if tile_width == 0 || tile_height == 0 {
         return Err(CodecError::InvalidHeader("tile size 0".into()));
     }
-    let max_error = if flags & flag::MAX_ERROR != 0 {
-        r.number()?
-    } else {
-        implied_max_error(mode)
-    };
-    let valid_range = (r.number()?, r.number()?);
-    let nodata = if flags & flag::NODATA != 0 {
-        Some(r.number()?)
-    } else {
-        None
-    };
+    let (max_error, valid_range, nodata) = read_values(r, flags, mode)?;
     let index_len = r.varint()?;
-    let georef = if flags & flag::GEOREF != 0 {
-        Some(read_georef(r)?)
-    } else {
-        None
-    };
-    let metadata = if flags & flag::METADATA != 0 {
-        read_metadata(r)?
-    } else {
-        Metadata::default()
-    };
+    let (georef, metadata) = read_gis(r, flags)?;
     Ok(Header {
         max_error,
         valid_range,
