@@ -47,12 +47,14 @@ pub struct TiledEncoded {
 /// samples at a time: the one being coded and the next, read meanwhile. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
 /// coded up to about four times its share of the budget) until the budget is shared.
+/// `rows_done(k)` is called after each tile row, `k` rows of [`TileGrid::rows`] done.
 pub fn encode_tiled(
     bands: &mut RowBands,
     info: &RasterInfo,
     grid: &TileGrid,
     options: &EncodeOptions,
     output: &Path,
+    rows_done: &mut dyn FnMut(usize),
 ) -> Result<TiledEncoded, TiledEncodeError> {
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
@@ -83,6 +85,7 @@ pub fn encode_tiled(
         if let Some(next) = next? {
             band = next;
         }
+        rows_done(row + 1);
     }
     if let Some(budget) = options.budget_bytes {
         let cut = cut_to_budget(kept, info, grid, budget)?;

@@ -217,6 +217,25 @@ fn budgets_and_damage_on_tiled_files() {
     let decode = wavemesh(&["decode", s(&damaged), "-o", s(&out)]);
     assert!(decode.status.success());
     assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+    // --strict refuses it, and leaves no output behind.
+    let strict_out = dir.path().join("strict.tif");
+    let strict = wavemesh(&["decode", s(&damaged), "-o", s(&strict_out), "--strict"]);
+    assert_eq!(strict.status.code(), Some(3));
+    assert!(!strict_out.exists());
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".wavemesh-tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    // An output that cannot be written: exit 4.
+    let nowhere = dir.path().join("missing-folder").join("x.tif");
+    assert_eq!(
+        wavemesh(&["decode", s(&lossless), "-o", s(&nowhere)])
+            .status
+            .code(),
+        Some(4)
+    );
 }
 
 #[test]

@@ -459,24 +459,32 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             && !to_stdout
             && wavemesh::dem::is_geotiff_path(&args.output)
     });
-    let (decoded, seconds, peak) = with_codec_progress(
-        "decoding",
-        Workload::new(samples, header.sample_type),
-        || {
-            timed(|| match streamed {
-                Some(layout) => super::tiled_coding::decode_rows(
+    let load = Workload::new(samples, header.sample_type);
+    let (decoded, seconds, peak) = match streamed {
+        Some(layout) => {
+            let bar =
+                super::tiled_coding::TileRowBar::new("decoding", &layout.grid, load, args.json);
+            let out = timed(|| {
+                super::tiled_coding::decode_rows(
                     (&args.input, &args.output),
                     &mut source,
                     layout,
                     &options,
+                    &bar,
                 )
-                .map(|outcome| (outcome, None)),
-                None => decode_window(&mut source, window, &options)
+                .map(|outcome| (outcome, None))
+            });
+            bar.finish();
+            out
+        }
+        None => with_codec_progress("decoding", load, || {
+            timed(|| {
+                decode_window(&mut source, window, &options)
                     .map(|d| (DecodeOutcome::of(&d), Some(d)))
-                    .map_err(stream_error),
+                    .map_err(stream_error)
             })
-        },
-    );
+        }),
+    };
     let (outcome, decoded) = decoded?;
     let bytes_read = match &layout {
         Some(_) => source.bytes_read(),

@@ -9,10 +9,10 @@ use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemInfo, RowBands, TiledGeoTiffWriter};
 use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
-use wavemesh_codec::{decode_window, DecodeOptions, TileGrid, Window};
+use wavemesh_codec::{decode_window, DecodeOptions, Raster, TileGrid, Window};
 
 use super::coding::{encode_options, print_encode_report, DecodeOutcome, EncodeArgs, EncodeFacts};
-use super::{read_failure, timed, with_codec_progress, CliError, Workload};
+use super::{read_failure, timed, CliError, Workload};
 
 /// Encodes `bands` on `grid` into `args.output` and reports it like any encode.
 pub fn encode(
@@ -27,10 +27,18 @@ pub fn encode(
     }
     let samples = (info.width * info.height) as u64;
     let options = encode_options(args, samples)?;
-    let load = Workload::new(samples, info.sample_type);
-    let (written, seconds, peak) = with_codec_progress("encoding", load, || {
-        timed(|| encode_tiled(bands, &info, grid, &options, &args.output))
+    let bar = TileRowBar::new(
+        "encoding",
+        grid,
+        Workload::new(samples, info.sample_type),
+        args.json,
+    );
+    let (written, seconds, peak) = timed(|| {
+        encode_tiled(bands, &info, grid, &options, &args.output, &mut |k| {
+            bar.show(k)
+        })
     });
+    bar.finish();
     let written = written.map_err(|e| match e {
         TiledEncodeError::Read(e) => read_failure(&args.input, e),
         TiledEncodeError::Encode(e) => CliError::Encode(e),
@@ -54,16 +62,76 @@ pub fn encode(
     Ok(())
 }
 
+/// A progress bar over tile rows on a terminal (stderr): rows done, Msamples, MB/s and
+/// the time left; nothing under `--json` or when stderr is not a terminal.
+pub struct TileRowBar {
+    bar: Option<indicatif::ProgressBar>,
+    rows: usize,
+    load: Workload,
+    start: std::time::Instant,
+}
+
+impl TileRowBar {
+    /// A bar for `grid`'s tile rows (`quiet`: none).
+    pub fn new(message: &str, grid: &TileGrid, load: Workload, quiet: bool) -> TileRowBar {
+        use std::io::IsTerminal;
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let style = indicatif::ProgressStyle::with_template(
+                "{spinner} {prefix} [{wide_bar}] {percent:>3}% {msg} ETA {eta}",
+            )
+            .expect("a valid template")
+            .progress_chars("=> ");
+            let bar = indicatif::ProgressBar::new(grid.rows() as u64)
+                .with_style(style)
+                .with_prefix(message.to_string());
+            bar.enable_steady_tick(std::time::Duration::from_millis(100));
+            bar
+        });
+        TileRowBar {
+            bar,
+            rows: grid.rows(),
+            load,
+            start: std::time::Instant::now(),
+        }
+    }
+
+    /// `done` tile rows of the whole are through.
+    pub fn show(&self, done: usize) {
+        let Some(bar) = &self.bar else {
+            return;
+        };
+        let fraction = done as f64 / self.rows.max(1) as f64;
+        let seconds = self.start.elapsed().as_secs_f64().max(1e-3);
+        bar.set_position(done as u64);
+        bar.set_message(format!(
+            "tile rows {done}/{}: {:.1} of {:.1} Msamples, {:.1} MB/s",
+            self.rows,
+            fraction * self.load.samples as f64 / 1e6,
+            self.load.samples as f64 / 1e6,
+            fraction * self.load.bytes as f64 / 1e6 / seconds
+        ));
+    }
+
+    /// Clears the bar.
+    pub fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
 /// Tile side of the GeoTIFFs a streaming decode writes.
 const GEOTIFF_TILE: u32 = 256;
 
 /// Decodes the tiled file `layout` describes one tile row at a time into a tiled
-/// GeoTIFF at `output`: memory holds one row of tiles, not the raster.
+/// GeoTIFF at `output`, each row written on another thread while the next is decoded:
+/// memory holds two rows of tiles, not the raster. `bar` shows the rows done.
 pub fn decode_rows(
     (input, output): (&Path, &Path),
     source: &mut FileSource,
     layout: &TiledLayout,
     options: &DecodeOptions,
+    bar: &TileRowBar,
 ) -> Result<DecodeOutcome, CliError> {
     let header = &layout.header;
     let grid = &layout.grid;
@@ -75,7 +143,7 @@ pub fn decode_rows(
         georef: header.georef.clone(),
         metadata: header.metadata.clone(),
     };
-    let mut writer =
+    let writer =
         TiledGeoTiffWriter::create(output, &info, GEOTIFF_TILE).map_err(CliError::DemOutput)?;
     let mut outcome = DecodeOutcome {
         width: grid.width,
@@ -85,24 +153,46 @@ pub fn decode_rows(
         bytes_used: layout.head_len(),
         damage: None,
     };
-    for row in 0..grid.rows() {
-        let y = row * grid.tile_height;
-        let window = Window {
-            x: 0,
-            y,
-            width: grid.width,
-            height: grid.tile_height.min(grid.height - y),
-        };
-        let decoded = decode_window(source, Some(window), options)
-            .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
-        outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
-        outcome.complete &= decoded.complete;
-        outcome.bytes_used += decoded.bytes_used - layout.head_len();
-        outcome.damage = outcome.damage.or(decoded.damage);
-        writer
-            .write_rows(y, &decoded.raster)
-            .map_err(CliError::DemOutput)?;
-    }
-    writer.finish().map_err(CliError::DemOutput)?;
+    let (rows, written) = std::sync::mpsc::sync_channel::<(usize, Raster)>(1);
+    std::thread::scope(|scope| {
+        let writing = scope.spawn(move || write_rows(writer, written));
+        let decoding = (|| {
+            for row in 0..grid.rows() {
+                let y = row * grid.tile_height;
+                let window = Window {
+                    x: 0,
+                    y,
+                    width: grid.width,
+                    height: grid.tile_height.min(grid.height - y),
+                };
+                let decoded = decode_window(source, Some(window), options)
+                    .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
+                outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
+                outcome.complete &= decoded.complete;
+                outcome.bytes_used += decoded.bytes_used - layout.head_len();
+                outcome.damage = outcome.damage.or(decoded.damage);
+                if rows.send((y, decoded.raster)).is_err() {
+                    break; // the writer failed: its error is reported below
+                }
+                bar.show(row + 1);
+            }
+            Ok(())
+        })();
+        drop(rows);
+        let wrote = writing.join().expect("the GeoTIFF writer does not panic");
+        decoding.and(wrote.map_err(CliError::DemOutput))
+    })?;
     Ok(outcome)
+}
+
+/// Writes the rows that arrive, in order, then finishes the file (nothing is left
+/// behind if a row fails or the rows stop early: the writer is dropped unfinished).
+fn write_rows(
+    mut writer: TiledGeoTiffWriter,
+    rows: std::sync::mpsc::Receiver<(usize, Raster)>,
+) -> Result<(), wavemesh::dem::DemError> {
+    for (y, band) in rows {
+        writer.write_rows(y, &band)?;
+    }
+    writer.finish()
 }
