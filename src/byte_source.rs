@@ -7,9 +7,10 @@ use std::path::Path;
 
 use wavemesh_codec::ByteSource;
 
-/// A file read by ranges. The first block read from the start of the file is kept, so
-/// the header and index, which every reader of a tiled file looks at first, are read
-/// from disk once.
+/// A file read by ranges. What is read from the start of the file on (up to 16 MiB, as
+/// long as the reads continue one another) is kept, so the header and index, which every
+/// reader of a tiled file looks at first and again for each tile row, are read from
+/// disk once.
 #[derive(Debug)]
 pub struct FileSource {
     file: File,
@@ -60,20 +61,22 @@ impl ByteSource for FileSource {
         }
         if cached_end < end {
             self.file.seek(SeekFrom::Start(cached_end))?;
+            let before = out.len();
             let read = (&mut self.file)
                 .take(end - cached_end)
                 .read_to_end(&mut out)?;
             self.bytes_read += read as u64;
-        }
-        if offset == 0 && self.head.is_empty() && out.len() <= HEAD_KEPT {
-            self.head = out.clone();
+            // Reads that continue the kept start (the header, then the index) extend it.
+            if cached_end == kept && kept as usize + read <= HEAD_KEPT {
+                self.head.extend_from_slice(&out[before..]);
+            }
         }
         Ok(out)
     }
 }
 
-/// Most bytes of the file's start kept after the first read there.
-const HEAD_KEPT: usize = 1 << 16;
+/// Most bytes of the file's start kept.
+const HEAD_KEPT: usize = 16 << 20;
 
 #[cfg(test)]
 mod tests {
@@ -93,11 +96,17 @@ mod tests {
         assert_eq!(source.read_at(0, 50).unwrap().len(), 50);
         assert_eq!(source.read_at(5, 20).unwrap()[0], 5);
         assert_eq!(source.bytes_read(), 55);
-        // Past the kept start: only the rest comes from disk.
+        // Past the kept start: only the rest comes from disk, and is kept too.
         assert_eq!(
             source.read_at(40, 20).unwrap(),
             (40..60u8).collect::<Vec<_>>()
         );
         assert_eq!(source.bytes_read(), 65);
+        assert_eq!(source.read_at(0, 60).unwrap().len(), 60);
+        assert_eq!(source.bytes_read(), 65);
+        // A read elsewhere is not kept.
+        assert_eq!(source.read_at(80, 5).unwrap(), vec![80, 81, 82, 83, 84]);
+        assert_eq!(source.read_at(80, 5).unwrap().len(), 5);
+        assert_eq!(source.bytes_read(), 75);
     }
 }
