@@ -253,3 +253,22 @@ def test_the_gil_is_released_while_coding():
     woke = time.perf_counter()
     worker.join()
     assert woke < times["start"] + 0.5 * (times["end"] - times["start"])
+
+
+def test_tiled_arrays_windows_and_threads():
+    dem = terrain(np.dtype("int16"), (200, 300))
+    one = wavemesh.encode(dem, tile=64, threads=1)
+    assert wavemesh.encode(dem, tile=64, threads=2) == one
+    tiles = wavemesh.info(one)["tiles"]
+    # 300 = 5 tiles of 60; 200 = 4 tiles of 50.
+    assert (tiles["tile_width"], tiles["tile_height"], tiles["count"]) == (60, 50, 20)
+    assert wavemesh.info(wavemesh.encode(dem, tile=0))["tiles"] is None
+    assert np.array_equal(wavemesh.decode(one).filled(), dem)
+    part = wavemesh.decode(one, window=(70, 30, 100, 60))
+    assert np.array_equal(part.filled(), dem[30:90, 70:170])
+    coarse = wavemesh.decode(one, nbytes=len(one) // 4)
+    assert np.abs(coarse.astype(float) - dem).mean() > 0
+    with pytest.raises(ValueError):
+        wavemesh.decode(one, window=(250, 0, 100, 10))
+    with pytest.raises(ValueError):
+        wavemesh.decode(one, window=(0, 0, 10))
