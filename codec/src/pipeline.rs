@@ -156,14 +156,7 @@ pub fn encode_with_corrections(
         if let Some(&(_, size)) = tried.iter().find(|(c, _)| *c == cut) {
             return Ok(size);
         }
-        let size = match corrected_file(
-            raster,
-            &stream.header,
-            &parts.mask,
-            &payload[..cut],
-            e,
-            step,
-        )? {
+        let size = match corrected_file(raster, &stream, &parts.mask, &payload[..cut], e, step)? {
             Some(file) => {
                 let size = file.bytes.len();
                 if best.as_ref().is_none_or(|b| size < b.bytes.len()) {
@@ -203,17 +196,18 @@ pub fn encode_with_corrections(
     Ok(best)
 }
 
-/// The file made of `header` and `mask`, `payload`, and the corrections that bring every
-/// valid sample within `e`; `None` if some sample cannot be corrected.
+/// The file made of `stream`'s header and `mask`, `payload` (a prefix of `stream`'s),
+/// and the corrections that bring every valid sample within `e`; `None` if some sample
+/// cannot be corrected.
 fn corrected_file(
     raster: &Raster,
-    header: &Header,
+    stream: &Encoded,
     mask: &[u8],
     payload: &[u8],
     e: f64,
     step: f64,
 ) -> Result<Option<Encoded>, CodecError> {
-    let mut header = header.clone();
+    let mut header = stream.header.clone();
     header.payload_truncated = true;
     header.passes.retain(|p| p.end_byte <= payload.len() as u64);
     header.correction_step = 0.0;
@@ -247,7 +241,7 @@ fn corrected_file(
     Ok(Some(Encoded {
         header_len,
         bytes,
-        initial_error: f64::NAN,
+        initial_error: stream.initial_error,
         header,
     }))
 }

@@ -251,3 +251,27 @@ fn a_damaged_tile_is_reported_by_number_and_the_others_decode() {
     };
     assert!(decode(&file, &strict).is_err());
 }
+
+#[test]
+fn every_tile_of_a_max_error_file_has_a_ladder_start() {
+    // Large bounds make the cut 9/7 stream with corrections win in some tiles; the
+    // index must still hold each tile's initial error, or budgets skip those tiles.
+    let raster = terrain(200, 130);
+    for e in [4.0, 16.0] {
+        let file = encode(&raster, &tiled(64, Quality::MaxError(e), None)).unwrap();
+        let layout = TiledLayout::read(&mut &file.bytes[..], u64::MAX)
+            .unwrap()
+            .unwrap();
+        let corrected = layout.offsets.iter().any(|&o| {
+            let (header, _) = wavemesh_codec::Header::parse(&file.bytes[o as usize..]).unwrap();
+            header.correction_step > 0.0
+        });
+        eprintln!("max error {e}: corrections in some tile: {corrected}");
+        for (k, entry) in layout.entries.iter().enumerate() {
+            assert!(
+                entry.initial_error > 0.0,
+                "tile {k} at max error {e}: {entry:?}"
+            );
+        }
+    }
+}
