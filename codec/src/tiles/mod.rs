@@ -234,8 +234,7 @@ pub(crate) fn encode(
     for row in 0..grid.rows() {
         let y = row * grid.tile_height;
         let height = grid.tile_height.min(grid.height - y);
-        let band = raster.crop(0, y, raster.width, height);
-        tiles.extend(encode_row(&workers, &band, grid, row, options)?);
+        tiles.extend(encode_row(&workers, (raster, 0), grid, row, options)?);
         let done = (y + height) as u64 * raster.width as u64;
         crate::progress::report(crate::progress::Stage::Tiles, done, raster.len() as u64);
     }
@@ -267,12 +266,20 @@ pub fn encode_band(
     row: usize,
     options: &EncodeOptions,
 ) -> Result<Vec<EncodedTile>, CodecError> {
-    encode_row(&Workers::new(options.threads)?, band, grid, row, options)
+    let band_y = row * grid.tile_height;
+    encode_row(
+        &Workers::new(options.threads)?,
+        (band, band_y),
+        grid,
+        row,
+        options,
+    )
 }
 
+/// The tiles of row `row` cut from `rows`, whose first row is raster row `first`.
 fn encode_row(
     workers: &Workers,
-    band: &Raster,
+    (rows, first): (&Raster, usize),
     grid: &TileGrid,
     row: usize,
     options: &EncodeOptions,
@@ -281,7 +288,7 @@ fn encode_row(
     workers
         .map(grid.row(row), |k| {
             let window = grid.tile(k);
-            let part = band.crop(window.x, 0, window.width, window.height);
+            let part = rows.crop(window.x, window.y - first, window.width, window.height);
             encode_tile(
                 &part,
                 options,
