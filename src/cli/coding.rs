@@ -522,7 +522,12 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         bytes_used: outcome.bytes_used,
         bpp: metrics::bits_per_sample(bytes_read, header.width as usize, header.height as usize),
         passes_decoded: outcome.passes_decoded,
-        passes_total: header.top_plane.map_or(0, |t| t as usize + 1),
+        passes_total: match &layout {
+            // A tiled file: the passes every tile has (passes_decoded is the least any
+            // tile decoded).
+            Some(l) => l.entries.iter().map(|e| e.passes.len()).min().unwrap_or(0),
+            None => header.top_plane.map_or(0, |t| t as usize + 1),
+        },
         complete: outcome.complete,
         decode_seconds: seconds,
         decode_msamples_per_second: out_samples as f64 / seconds / 1e6,
