@@ -44,7 +44,8 @@ pub struct TiledEncoded {
 /// Encodes the raster `bands` reads (described by `info`: its [`RowBands::info`],
 /// perhaps with metadata left out) as a
 /// tiled file on `grid` into `output` (written atomically), holding two tile rows of
-/// samples at a time: the one being coded and the next, read meanwhile. Without a byte budget the
+/// samples at a time: the one being coded and the next, read meanwhile (one after the
+/// other when `options.threads` is 1). Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
 /// coded up to about four times its share of the budget) until the budget is shared.
 /// `rows_done(k)` is called after each tile row, `k` rows of [`TileGrid::rows`] done.
@@ -61,19 +62,7 @@ pub fn encode_tiled(
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
     let mut band = read_band(bands, grid, 0)?;
     for row in 0..grid.rows() {
-        // The next band is read while this one's tiles are coded.
-        let (tiles, next) = std::thread::scope(|scope| {
-            let reader = scope.spawn(|| {
-                (row + 1 < grid.rows())
-                    .then(|| read_band(bands, grid, row + 1))
-                    .transpose()
-            });
-            let tiles = encode_band(&band, grid, row, options);
-            (
-                tiles,
-                reader.join().expect("the band reader does not panic"),
-            )
-        });
+        let (tiles, next) = code_and_read_next(&band, bands, grid, row, options);
         for tile in tiles? {
             summaries.push(tile.summary.clone());
             if options.budget_bytes.is_some() {
@@ -102,6 +91,35 @@ pub fn encode_tiled(
         bytes: head.len() as u64 + tiles_len,
         head_bytes: head.len() as u64,
         tiles: summaries,
+    })
+}
+
+/// Codes the tiles of `band` (tile row `row`) and reads the next band: at the same time
+/// on two threads, unless `options` asks for one thread, when the read follows the coding.
+fn code_and_read_next(
+    band: &Raster,
+    bands: &mut RowBands,
+    grid: &TileGrid,
+    row: usize,
+    options: &EncodeOptions,
+) -> (
+    Result<Vec<EncodedTile>, CodecError>,
+    Result<Option<Raster>, DemError>,
+) {
+    let read_next = |bands: &mut RowBands| {
+        (row + 1 < grid.rows())
+            .then(|| read_band(bands, grid, row + 1))
+            .transpose()
+    };
+    if options.threads == 1 {
+        let tiles = encode_band(band, grid, row, options);
+        return (tiles, read_next(bands));
+    }
+    std::thread::scope(|scope| {
+        let reader = scope.spawn(|| read_next(bands));
+        let tiles = encode_band(band, grid, row, options);
+        let next = reader.join().expect("the band reader does not panic");
+        (tiles, next)
     })
 }
 

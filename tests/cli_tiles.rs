@@ -29,7 +29,7 @@ fn synth(dir: &Path, w: u32, h: u32) -> std::path::PathBuf {
 }
 
 #[test]
-fn streaming_encode_is_lossless_and_independent_of_threads() {
+fn streaming_coding_is_lossless_and_independent_of_threads() {
     let dir = scratch("cli-tiles");
     let tif = synth(dir.path(), 1300, 700);
     let one = dir.path().join("one.ezw");
@@ -86,9 +86,26 @@ fn streaming_encode_is_lossless_and_independent_of_threads() {
         (info["tiles"].as_u64(), info["tile_width"].as_u64()),
         (Some(6), Some(434))
     );
+    // Decoding writes the same GeoTIFF on one thread (rows written in turn) as on two
+    // (rows written while the next decodes).
     let out = dir.path().join("out.tif");
-    json(&["decode", s(&one), "-o", s(&out), "--json"]);
+    let out_one = dir.path().join("out-one.tif");
+    json(&["decode", s(&one), "-o", s(&out), "--threads", "2", "--json"]);
+    json(&[
+        "decode",
+        s(&one),
+        "-o",
+        s(&out_one),
+        "--threads",
+        "1",
+        "--json",
+    ]);
     assert_eq!(read(&out).samples, read(&tif).samples);
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&out_one).unwrap(),
+        "threads changed the decoded GeoTIFF"
+    );
 }
 
 #[test]

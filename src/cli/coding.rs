@@ -116,7 +116,8 @@ pub struct DecodeArgs {
 /// Threads for coding tiles.
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct ThreadArgs {
-    /// Threads coding tiles at once (0: one per core). The output does not depend on it.
+    /// Threads at work (0: one per core; 1: everything on one thread, reading or writing
+    /// the GeoTIFF included). The output does not depend on it.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub threads: usize,
 }

@@ -124,7 +124,8 @@ impl TileRowBar {
 const GEOTIFF_TILE: u32 = 256;
 
 /// Decodes the tiled file `layout` describes one tile row at a time into a tiled
-/// GeoTIFF at `output`, each row written on another thread while the next is decoded:
+/// GeoTIFF at `output`, each row written on another thread while the next is decoded
+/// (with one thread, written before the next is decoded):
 /// memory holds two rows of tiles, not the raster. `bar` shows the rows done.
 pub fn decode_rows(
     (input, output): (&Path, &Path),
@@ -153,31 +154,49 @@ pub fn decode_rows(
         bytes_used: layout.head_len(),
         damage: None,
     };
+    let mut decode_all = |deliver: &mut dyn FnMut(usize, Raster) -> bool| {
+        for row in 0..grid.rows() {
+            let y = row * grid.tile_height;
+            let window = Window {
+                x: 0,
+                y,
+                width: grid.width,
+                height: grid.tile_height.min(grid.height - y),
+            };
+            let decoded = decode_window(source, Some(window), options)
+                .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
+            outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
+            outcome.complete &= decoded.complete;
+            outcome.bytes_used += decoded.bytes_used - layout.head_len();
+            outcome.damage = outcome.damage.or(decoded.damage);
+            if !deliver(y, decoded.raster) {
+                break; // the writer failed: its error is reported by the caller
+            }
+            bar.show(row + 1);
+        }
+        Ok::<(), CliError>(())
+    };
+    if options.threads == 1 {
+        // One thread: each row is written before the next is decoded.
+        let mut writer = writer;
+        let mut failure = None;
+        decode_all(&mut |y, band| match writer.write_rows(y, &band) {
+            Ok(()) => true,
+            Err(e) => {
+                failure = Some(e);
+                false
+            }
+        })?;
+        return match failure {
+            Some(e) => Err(CliError::DemOutput(e)),
+            None => writer.finish().map_err(CliError::DemOutput),
+        }
+        .map(|()| outcome);
+    }
     let (rows, written) = std::sync::mpsc::sync_channel::<(usize, Raster)>(1);
     std::thread::scope(|scope| {
         let writing = scope.spawn(move || write_rows(writer, written));
-        let decoding = (|| {
-            for row in 0..grid.rows() {
-                let y = row * grid.tile_height;
-                let window = Window {
-                    x: 0,
-                    y,
-                    width: grid.width,
-                    height: grid.tile_height.min(grid.height - y),
-                };
-                let decoded = decode_window(source, Some(window), options)
-                    .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
-                outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
-                outcome.complete &= decoded.complete;
-                outcome.bytes_used += decoded.bytes_used - layout.head_len();
-                outcome.damage = outcome.damage.or(decoded.damage);
-                if rows.send((y, decoded.raster)).is_err() {
-                    break; // the writer failed: its error is reported below
-                }
-                bar.show(row + 1);
-            }
-            Ok(())
-        })();
+        let decoding = decode_all(&mut |y, band| rows.send((y, band)).is_ok());
         drop(rows);
         let wrote = writing.join().expect("the GeoTIFF writer does not panic");
         decoding.and(wrote.map_err(CliError::DemOutput))
