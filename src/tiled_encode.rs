@@ -11,7 +11,7 @@ use thiserror::Error;
 use wavemesh_codec::tiles::{
     cut_to_budget, encode_band, tiled_head, EncodedTile, RasterInfo, TileSummary,
 };
-use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid};
+use wavemesh_codec::{CodecError, EncodeOptions, Raster, Samples, TileGrid};
 
 use crate::dem::{DemError, RowBands};
 
@@ -60,7 +60,7 @@ pub fn encode_tiled(
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
-    let mut band = read_band(bands, grid, 0)?;
+    let mut band = read_band(bands, grid, 0, None)?;
     for row in 0..grid.rows() {
         let (tiles, next) = code_and_read_next(&band, bands, grid, row, options);
         for tile in tiles? {
@@ -77,7 +77,7 @@ pub fn encode_tiled(
         rows_done(row + 1);
     }
     if let Some(budget) = options.budget_bytes {
-        let cut = cut_to_budget(kept, info, grid, budget)?;
+        let cut = cut_to_budget(kept, info, grid, budget, &mut recoder(bands, grid, options))?;
         summaries = cut.iter().map(|t| t.summary.clone()).collect();
         for tile in &cut {
             spool.write_all(&tile.bytes)?;
@@ -94,6 +94,32 @@ pub fn encode_tiled(
     })
 }
 
+/// Codes tile `k` again, up to `cap` bytes, from its rows read again (the last tile
+/// row read is kept: the tiles to code again come in grid order).
+fn recoder<'a>(
+    bands: &'a mut RowBands,
+    grid: &'a TileGrid,
+    options: &'a EncodeOptions,
+) -> impl FnMut(usize, u64) -> Result<EncodedTile, TiledEncodeError> + 'a {
+    let mut rows: Option<(usize, Raster)> = None;
+    move |k, cap| {
+        let row = k / grid.columns();
+        if rows.as_ref().is_none_or(|(r, _)| *r != row) {
+            let band = grid.coded_rows(row);
+            rows = Some((row, bands.read_rows(band.y, band.height)?));
+        }
+        let (_, band) = rows.as_ref().expect("rows just read");
+        let w = grid.coded(k);
+        let top = grid.coded_rows(row).y;
+        let part = band.crop(w.x, w.y - top, w.width, w.height);
+        Ok(wavemesh_codec::tiles::encode_tile(
+            &part,
+            options,
+            Some(cap),
+        )?)
+    }
+}
+
 /// Codes the tiles of `band` (tile row `row`) and reads the next band: at the same time
 /// on two threads, unless `options` asks for one thread, when the read follows the coding.
 fn code_and_read_next(
@@ -108,7 +134,7 @@ fn code_and_read_next(
 ) {
     let read_next = |bands: &mut RowBands| {
         (row + 1 < grid.rows())
-            .then(|| read_band(bands, grid, row + 1))
+            .then(|| read_band(bands, grid, row + 1, Some(band)))
             .transpose()
     };
     if options.threads == 1 {
@@ -123,10 +149,44 @@ fn code_and_read_next(
     })
 }
 
-/// The rows of tile row `row`.
-fn read_band(bands: &mut RowBands, grid: &TileGrid, row: usize) -> Result<Raster, DemError> {
-    let y = row * grid.tile_height;
-    bands.read_rows(y, grid.tile_height.min(grid.height - y))
+/// The rows the streams of tile row `row` code (its own and the overlap), with those it
+/// shares with `previous` (the band of row `row - 1`) taken from it, so every row of the
+/// DEM is read once.
+fn read_band(
+    bands: &mut RowBands,
+    grid: &TileGrid,
+    row: usize,
+    previous: Option<&Raster>,
+) -> Result<Raster, DemError> {
+    let rows = grid.coded_rows(row);
+    let end = rows.y + rows.height;
+    let (shared, previous) = match previous {
+        Some(band) if row > 0 => {
+            let from = grid.coded_rows(row - 1);
+            let shared = (from.y + from.height).saturating_sub(rows.y);
+            (shared, Some((band, rows.y - from.y)))
+        }
+        _ => (0, None),
+    };
+    if shared == 0 {
+        return bands.read_rows(rows.y, rows.height);
+    }
+    let (band, offset) = previous.expect("a previous band when rows are shared");
+    let mut out = band.crop(0, offset, grid.width, shared);
+    if rows.y + shared < end {
+        let fresh = bands.read_rows(rows.y + shared, end - rows.y - shared)?;
+        let mut joined = Raster::new(
+            grid.width,
+            rows.height,
+            Samples::filled(band.sample_type(), 0.0, grid.width * rows.height),
+        )
+        .expect("samples sized to the band");
+        joined.nodata = band.nodata;
+        joined.paste(0, 0, &out);
+        joined.paste(0, shared, &fresh);
+        out = joined;
+    }
+    Ok(out)
 }
 
 /// Writes the header and index, then the spooled tiles.

@@ -1,9 +1,10 @@
 //! Tile seams on the shared DEMs: at 0.25 bpp with 256-sample tiles, the RMSE of the
 //! samples along tile borders against the interior's, and the whole-DEM PSNR against an
-//! untiled encode. Issue 9 asks for 10 % and 0.2 dB; today's figures (printed with
-//! `--nocapture`, quoted in the README's *Large DEMs*) reach 1.83 and 1.16 dB on the
-//! steepest DEMs, so the bounds checked here are today's with a margin: they catch a
-//! regression, and are to be tightened toward the issue's as seams improve.
+//! untiled encode. Issue 9 asks for 10 % and 0.2 dB. Tiles overlapping by two samples
+//! (the decoder drops them) meet the first on every DEM checked here (0.76–1.02, printed
+//! with `--nocapture`; 1.83 on sthelens_10m without the overlap); the second is not met
+//! (0.27–1.23 dB on the steep DEMs: each tile codes its own coarse levels, as JPEG 2000's
+//! tiles do), so the PSNR bound checked is today's with a margin, against regressions.
 
 mod support;
 
@@ -77,7 +78,7 @@ fn tile_seams_on_shared_dems() {
             20.0 * (rmse(all) / rmse(untiled)).log10(),
             rmse(wb) / rmse(wi),
         );
-        assert!(rmse(border) <= 2.0 * rmse(interior), "{name}: border RMSE");
+        assert!(rmse(border) <= 1.1 * rmse(interior), "{name}: border RMSE");
         assert!(
             rmse(all) <= 1.2 * rmse(untiled),
             "{name}: PSNR loss over 1.6 dB"

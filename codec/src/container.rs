@@ -133,6 +133,8 @@ pub struct Tiling {
     pub tile_width: u32,
     /// Rows of a tile.
     pub tile_height: u32,
+    /// Samples each tile's stream codes beyond the tile on each side.
+    pub overlap: u32,
     /// Bytes of the tile index, framed.
     pub index_len: u64,
 }

@@ -200,6 +200,44 @@ fn budgets_spend_bytes_where_they_buy_the_most() {
     }
 }
 
+/// One rough tile among flat ones: under a budget it needs many times its share, more
+/// than the encoder first codes a tile to; the cut must still match a decode of the
+/// complete file at the same budget.
+#[test]
+fn a_tile_needing_many_times_its_share_is_not_starved_by_its_cap() {
+    let (width, height) = (512, 512);
+    let samples = (0..width * height)
+        .map(|i| {
+            let (x, y) = (i % width, i / width);
+            if x < 128 && y < 128 {
+                ((i as u64).wrapping_mul(2654435761) % 4000) as i16 - 2000
+            } else {
+                100
+            }
+        })
+        .collect();
+    let raster = Raster::new(width, height, Samples::I16(samples)).unwrap();
+    let budget = (width * height / 8) as u64;
+    let full = encode(&raster, &tiled(128, Quality::Lossless, Some(8 * budget))).unwrap();
+    let at_budget = DecodeOptions {
+        max_bytes: Some(budget),
+        ..DecodeOptions::default()
+    };
+    let full_error = squared_error(&raster, &decode(&full.bytes, &at_budget).unwrap().raster);
+    let cut = encode(&raster, &tiled(128, Quality::Lossless, Some(budget))).unwrap();
+    assert!(cut.bytes.len() as u64 <= budget);
+    let cut_error = squared_error(
+        &raster,
+        &decode(&cut.bytes, &DecodeOptions::default())
+            .unwrap()
+            .raster,
+    );
+    assert!(
+        cut_error <= 1.05 * full_error,
+        "cut at the budget: {cut_error}, the whole file decoded at it: {full_error}"
+    );
+}
+
 #[test]
 fn a_truncated_file_decodes_the_tiles_it_holds() {
     let raster = terrain(200, 130);

@@ -23,7 +23,8 @@ mod flag {
     pub const RESIDUAL: u64 = 1 << 6;
     pub const MAX_ERROR: u64 = 1 << 7;
     pub const TILED: u64 = 1 << 8;
-    pub const ALL: u64 = (1 << 9) - 1;
+    pub const OVERLAP: u64 = 1 << 9;
+    pub const ALL: u64 = (1 << 10) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -110,6 +111,9 @@ fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
     ]);
     write_varint(&mut body, tiling.tile_width.into());
     write_varint(&mut body, tiling.tile_height.into());
+    if tiling.overlap > 0 {
+        write_varint(&mut body, tiling.overlap.into());
+    }
     write_values(&mut body, header);
     write_varint(&mut body, tiling.index_len);
     write_gis(&mut body, header);
@@ -174,6 +178,7 @@ fn flags(header: &Header) -> u64 {
         (single && has_residual(header), flag::RESIDUAL),
         (max_error_listed(header), flag::MAX_ERROR),
         (!single, flag::TILED),
+        (header.tiling.is_some_and(|t| t.overlap > 0), flag::OVERLAP),
     ] {
         if set {
             flags |= bit;
@@ -232,6 +237,11 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
             levels,
             mode,
         );
+    }
+    if flags & flag::OVERLAP != 0 {
+        return Err(CodecError::InvalidHeader(
+            "a tile overlap in a single stream".into(),
+        ));
     }
     let offset = r.number()?;
     let (step, coefficient_step) = match wavelet {
@@ -352,6 +362,11 @@ fn parse_tiled(
     if tile_width == 0 || tile_height == 0 {
         return Err(CodecError::InvalidHeader("tile size 0".into()));
     }
+    let overlap = if flags & flag::OVERLAP != 0 {
+        r.varint_u32("tile overlap")?
+    } else {
+        0
+    };
     let (max_error, valid_range, nodata) = read_values(r, flags, mode)?;
     let index_len = r.varint()?;
     let (georef, metadata) = read_gis(r, flags)?;
@@ -364,6 +379,7 @@ fn parse_tiled(
         tiling: Some(Tiling {
             tile_width,
             tile_height,
+            overlap,
             index_len,
         }),
         ..Header::whole_raster(width, height, sample_type, wavelet, levels, mode)

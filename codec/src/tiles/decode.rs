@@ -58,10 +58,20 @@ impl Output {
         strict: bool,
     ) -> Result<(), CodecError> {
         let start = layout.offsets[k];
+        let area = layout.grid.coded(k);
+        let misfit = |d: &Decoded| (d.raster.width, d.raster.height) != (area.width, area.height);
+        let result = match result {
+            Ok(d) if misfit(&d) => Err(CodecError::InvalidHeader(format!(
+                "tile {k} is {}x{}, not {}x{}",
+                d.raster.width, d.raster.height, area.width, area.height
+            ))),
+            other => other,
+        };
         match result {
             Ok(decoded) => {
-                let area = layout.grid.tile(k);
-                let part = area
+                let part = layout
+                    .grid
+                    .tile(k)
                     .intersection(&self.window)
                     .expect("a tile the window touches");
                 let piece =

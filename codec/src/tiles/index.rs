@@ -128,6 +128,7 @@ impl TiledLayout {
             height: header.height as usize,
             tile_width: tiling.tile_width as usize,
             tile_height: tiling.tile_height as usize,
+            overlap: tiling.overlap as usize,
         };
         let count = grid.count();
         // Every entry takes at least 5 bytes; a forged count cannot allocate beyond that.

@@ -28,6 +28,12 @@ use workers::Workers;
 /// than this stay a single stream.
 pub const DEFAULT_TILE: u32 = 1024;
 
+/// Samples each tile's stream codes beyond its own on every side that has a neighbour
+/// (the decoder drops them): a wavelet transform reconstructs the samples on the edge of
+/// what it codes worst (symmetric extension doubles their error), so those fall outside
+/// the tile. Two samples bring the tile borders' error down to the interior's.
+pub const TILE_OVERLAP: usize = 2;
+
 /// A rectangle of samples: its top-left corner and size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Window {
@@ -58,7 +64,9 @@ impl Window {
 }
 
 /// How a raster is cut into tiles: `tile_width × tile_height` from the top-left corner,
-/// row-major, the last column and row of tiles narrower where the raster ends.
+/// row-major, the last column and row of tiles narrower where the raster ends. Each
+/// tile's stream codes its samples and `overlap` more on every side inside the raster
+/// ([`TileGrid::coded`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TileGrid {
     /// Raster columns.
@@ -69,12 +77,14 @@ pub struct TileGrid {
     pub tile_width: usize,
     /// Rows of a tile.
     pub tile_height: usize,
+    /// Samples coded beyond a tile on each side (0 in files written before overlaps).
+    pub overlap: usize,
 }
 
 impl TileGrid {
     /// Tiles no larger than `max_tile` a side and as equal as the raster allows (a
     /// 1201-sample side with `max_tile` 1024 gets two tiles of 601 and 600, not 1024 and
-    /// 177); `None` when one tile covers the raster.
+    /// 177), overlapping by [`TILE_OVERLAP`]; `None` when one tile covers the raster.
     pub fn balanced(width: usize, height: usize, max_tile: usize) -> Option<TileGrid> {
         let max_tile = max_tile.max(1);
         if width <= max_tile && height <= max_tile {
@@ -86,6 +96,7 @@ impl TileGrid {
             height,
             tile_width: side(width),
             tile_height: side(height),
+            overlap: TILE_OVERLAP,
         })
     }
 
@@ -115,6 +126,30 @@ impl TileGrid {
             y,
             width: self.tile_width.min(self.width - x),
             height: self.tile_height.min(self.height - y),
+        }
+    }
+
+    /// The samples tile `index`'s stream codes: the tile and `overlap` more on each
+    /// side, within the raster.
+    pub fn coded(&self, index: usize) -> Window {
+        let tile = self.tile(index);
+        let x = tile.x.saturating_sub(self.overlap);
+        let y = tile.y.saturating_sub(self.overlap);
+        Window {
+            x,
+            y,
+            width: (tile.x + tile.width + self.overlap).min(self.width) - x,
+            height: (tile.y + tile.height + self.overlap).min(self.height) - y,
+        }
+    }
+
+    /// The raster rows the streams of tile row `row` code (a band as wide as the raster).
+    pub fn coded_rows(&self, row: usize) -> Window {
+        let coded = self.coded(row * self.columns());
+        Window {
+            x: 0,
+            width: self.width,
+            ..coded
         }
     }
 
@@ -199,6 +234,7 @@ pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> 
     header.tiling = Some(Tiling {
         tile_width: grid.tile_width as u32,
         tile_height: grid.tile_height as u32,
+        overlap: grid.overlap as u32,
         index_len: index.len() as u64,
     });
     let mut out = header.to_bytes();
@@ -240,7 +276,12 @@ pub(crate) fn encode(
     }
     let info = RasterInfo::of(raster);
     if let Some(budget) = options.budget_bytes {
-        tiles = cut_to_budget(tiles, &info, grid, budget)?;
+        let mut recode = |k: usize, cap: u64| {
+            let w = grid.coded(k);
+            let part = raster.crop(w.x, w.y, w.width, w.height);
+            encode_tile(&part, options, Some(cap))
+        };
+        tiles = cut_to_budget(tiles, &info, grid, budget, &mut recode)?;
     }
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
     let mut bytes = tiled_head(&info, grid, &summaries);
@@ -257,8 +298,8 @@ pub(crate) fn encode(
     })
 }
 
-/// Encodes the tiles of row `row` of `grid` from `band`, the raster's rows of that tile
-/// row, on `options.threads` threads (0: one per core), in grid order. With a byte
+/// Encodes the tiles of row `row` of `grid` from `band`, the raster's rows
+/// [`TileGrid::coded_rows`] of that tile row, on `options.threads` threads (0: one per core), in grid order. With a byte
 /// budget each tile is coded up to its cap (see [`cut_to_budget`] for the cut).
 pub fn encode_band(
     band: &Raster,
@@ -266,7 +307,7 @@ pub fn encode_band(
     row: usize,
     options: &EncodeOptions,
 ) -> Result<Vec<EncodedTile>, CodecError> {
-    let band_y = row * grid.tile_height;
+    let band_y = grid.coded_rows(row).y;
     encode_row(
         &Workers::new(options.threads)?,
         (band, band_y),
@@ -287,7 +328,7 @@ fn encode_row(
     let samples = (grid.width * grid.height) as u64;
     workers
         .map(grid.row(row), |k| {
-            let window = grid.tile(k);
+            let window = grid.coded(k);
             let part = rows.crop(window.x, window.y - first, window.width, window.height);
             encode_tile(
                 &part,
@@ -307,10 +348,62 @@ fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
     Some((4.0 * share) as u64 + 4096)
 }
 
-/// Cuts tiles so the whole file fits `budget` bytes. The index shrinks with the
-/// cut (fewer passes to list), so the header and index are first counted without
-/// passes, then the excess of each try, if any, is taken off the tiles' share.
-pub fn cut_to_budget(
+/// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
+/// allocation would read to the end are first coded again by `recode(k, cap)` with a
+/// cap four times larger, until the budget, not a cap, ends every tile (see
+/// [`recode_capped`]). The index shrinks with the cut (fewer passes to list), so the
+/// header and index are first counted without passes, then the excess of each try, if
+/// any, is taken off the tiles' share.
+pub fn cut_to_budget<E: From<CodecError>>(
+    tiles: Vec<EncodedTile>,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    budget: u64,
+    recode: &mut dyn FnMut(usize, u64) -> Result<EncodedTile, E>,
+) -> Result<Vec<EncodedTile>, E> {
+    let tiles = recode_capped(tiles, info, grid, budget, recode)?;
+    Ok(cut_recoded(tiles, info, grid, budget)?)
+}
+
+/// Re-codes, with four times the bytes, every tile that its cap cut (its stream is
+/// truncated) and that the allocation of `budget` reads through its last complete pass:
+/// the allocation knows nothing of that tile beyond the cap, so it may be starving it.
+/// Rounds repeat until no tile is starved (at most six: 4^6 times the first cap).
+pub fn recode_capped<E: From<CodecError>>(
+    mut tiles: Vec<EncodedTile>,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    budget: u64,
+    recode: &mut dyn FnMut(usize, u64) -> Result<EncodedTile, E>,
+) -> Result<Vec<EncodedTile>, E> {
+    for _ in 0..6 {
+        let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
+        let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
+        let lossless = weakest_mode(&summaries) == Mode::Lossless;
+        let reserve = tiled_head(info, grid, &summaries).len() as u64;
+        let Some(lengths) = budget
+            .checked_sub(reserve)
+            .and_then(|left| allocate(&entries, lossless, left))
+        else {
+            return Ok(tiles);
+        };
+        let mut starved = false;
+        for (k, tile) in tiles.iter_mut().enumerate() {
+            let known = tile.summary.entry.passes.last().map_or(0, |p| p.0);
+            if lengths[k] >= known && Header::parse(&tile.bytes)?.0.payload_truncated {
+                *tile = recode(k, 4 * tile.bytes.len() as u64)?;
+                starved = true;
+            }
+        }
+        if !starved {
+            break;
+        }
+    }
+    Ok(tiles)
+}
+
+/// The cut of [`cut_to_budget`], once no cap limits a tile.
+fn cut_recoded(
     tiles: Vec<EncodedTile>,
     info: &RasterInfo,
     grid: &TileGrid,
@@ -437,7 +530,8 @@ fn check_memory(
             limit: options.limits.max_samples,
         });
     }
-    let tile = (layout.grid.tile_width * layout.grid.tile_height) as u64;
+    let tile = layout.grid.coded(0);
+    let tile = (tile.width * tile.height) as u64;
     let needed = samples * layout.header.sample_type.bytes() as u64 + threads as u64 * tile * 10;
     if needed > options.limits.max_memory {
         return Err(CodecError::LimitExceeded {
