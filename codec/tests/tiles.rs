@@ -35,6 +35,15 @@ fn squared_error(a: &Raster, b: &Raster) -> f64 {
         .sum()
 }
 
+/// The squared error of `raster` encoded in `tile`-sample tiles cut at `budget` bytes
+/// (checked to fit it), decoded.
+fn cut_at_budget_error(raster: &Raster, tile: u32, budget: u64) -> f64 {
+    let cut = encode(raster, &tiled(tile, Quality::Lossless, Some(budget))).unwrap();
+    assert!(cut.bytes.len() as u64 <= budget);
+    let decoded = decode(&cut.bytes, &DecodeOptions::default()).unwrap();
+    squared_error(raster, &decoded.raster)
+}
+
 #[test]
 fn lossless_tiles_round_trip_bit_exactly_whatever_the_threads() {
     let mut raster = terrain(203, 150);
@@ -188,14 +197,7 @@ fn budgets_spend_bytes_where_they_buy_the_most() {
         );
         previous = error;
         // An encode cut at the same budget fits it and decodes about as well.
-        let cut = encode(&raster, &tiled(64, Quality::Lossless, Some(budget))).unwrap();
-        assert!(cut.bytes.len() as u64 <= budget);
-        let cut_error = squared_error(
-            &raster,
-            &decode(&cut.bytes, &DecodeOptions::default())
-                .unwrap()
-                .raster,
-        );
+        let cut_error = cut_at_budget_error(&raster, 64, budget);
         assert!(cut_error <= 1.5 * error + 1.0, "{cut_error} vs {error}");
     }
 }
@@ -224,14 +226,7 @@ fn a_tile_needing_many_times_its_share_is_not_starved_by_its_cap() {
         ..DecodeOptions::default()
     };
     let full_error = squared_error(&raster, &decode(&full.bytes, &at_budget).unwrap().raster);
-    let cut = encode(&raster, &tiled(128, Quality::Lossless, Some(budget))).unwrap();
-    assert!(cut.bytes.len() as u64 <= budget);
-    let cut_error = squared_error(
-        &raster,
-        &decode(&cut.bytes, &DecodeOptions::default())
-            .unwrap()
-            .raster,
-    );
+    let cut_error = cut_at_budget_error(&raster, 128, budget);
     assert!(
         cut_error <= 1.05 * full_error,
         "cut at the budget: {cut_error}, the whole file decoded at it: {full_error}"
