@@ -349,27 +349,12 @@ fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
 }
 
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
-/// allocation would read to the end are first coded again by `recode(k, cap)` with a
-/// cap four times larger, until the budget, not a cap, ends every tile (see
-/// [`recode_capped`]). The index shrinks with the cut (fewer passes to list), so the
-/// header and index are first counted without passes, then the excess of each try, if
-/// any, is taken off the tiles' share.
+/// allocation would read to the end are first coded again by `recode(k, cap)`, as
+/// [`starved_tiles`] says, until the budget, not a cap, ends every tile (at most six
+/// rounds). The index shrinks with the cut (fewer passes to list), so the header and
+/// index are first counted without passes, then the excess of each try, if any, is
+/// taken off the tiles' share.
 pub fn cut_to_budget<E: From<CodecError>>(
-    tiles: Vec<EncodedTile>,
-    info: &RasterInfo,
-    grid: &TileGrid,
-    budget: u64,
-    recode: &mut dyn FnMut(usize, u64) -> Result<EncodedTile, E>,
-) -> Result<Vec<EncodedTile>, E> {
-    let tiles = recode_capped(tiles, info, grid, budget, recode)?;
-    Ok(cut_recoded(tiles, info, grid, budget)?)
-}
-
-/// Re-codes, with four times the bytes, every tile that its cap cut (its stream is
-/// truncated) and that the allocation of `budget` reads through its last complete pass:
-/// the allocation knows nothing of that tile beyond the cap, so it may be starving it.
-/// Rounds repeat until no tile is starved (at most six: 4^6 times the first cap).
-pub fn recode_capped<E: From<CodecError>>(
     mut tiles: Vec<EncodedTile>,
     info: &RasterInfo,
     grid: &TileGrid,
@@ -377,29 +362,45 @@ pub fn recode_capped<E: From<CodecError>>(
     recode: &mut dyn FnMut(usize, u64) -> Result<EncodedTile, E>,
 ) -> Result<Vec<EncodedTile>, E> {
     for _ in 0..6 {
-        let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-        let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
-        let lossless = weakest_mode(&summaries) == Mode::Lossless;
-        let reserve = tiled_head(info, grid, &summaries).len() as u64;
-        let Some(lengths) = budget
-            .checked_sub(reserve)
-            .and_then(|left| allocate(&entries, lossless, left))
-        else {
-            return Ok(tiles);
-        };
-        let mut starved = false;
-        for (k, tile) in tiles.iter_mut().enumerate() {
-            let known = tile.summary.entry.passes.last().map_or(0, |p| p.0);
-            if lengths[k] >= known && Header::parse(&tile.bytes)?.0.payload_truncated {
-                *tile = recode(k, 4 * tile.bytes.len() as u64)?;
-                starved = true;
-            }
-        }
-        if !starved {
+        let starved = starved_tiles(&tiles, info, grid, budget)?;
+        if starved.is_empty() {
             break;
         }
+        for (k, cap) in starved {
+            tiles[k] = recode(k, cap)?;
+        }
     }
-    Ok(tiles)
+    Ok(cut_recoded(tiles, info, grid, budget)?)
+}
+
+/// The tiles to code again, each with its new cap (four times its bytes): those whose
+/// cap cut their stream and that the allocation of `budget` reads through their last
+/// complete pass — it knows nothing of them beyond the cap, so it may be starving them.
+/// Empty when no cap binds.
+pub fn starved_tiles(
+    tiles: &[EncodedTile],
+    info: &RasterInfo,
+    grid: &TileGrid,
+    budget: u64,
+) -> Result<Vec<(usize, u64)>, CodecError> {
+    let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
+    let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
+    let lossless = weakest_mode(&summaries) == Mode::Lossless;
+    let reserve = tiled_head(info, grid, &summaries).len() as u64;
+    let Some(lengths) = budget
+        .checked_sub(reserve)
+        .and_then(|left| allocate(&entries, lossless, left))
+    else {
+        return Ok(Vec::new());
+    };
+    let mut starved = Vec::new();
+    for (k, tile) in tiles.iter().enumerate() {
+        let known = tile.summary.entry.passes.last().map_or(0, |p| p.0);
+        if lengths[k] >= known && Header::parse(&tile.bytes)?.0.payload_truncated {
+            starved.push((k, 4 * tile.bytes.len() as u64));
+        }
+    }
+    Ok(starved)
 }
 
 /// The cut of [`cut_to_budget`], once no cap limits a tile.
