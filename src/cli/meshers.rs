@@ -26,6 +26,8 @@ pub enum MethodArg {
     Delaunay,
     /// QEM edge contraction straight on the height map.
     Qem,
+    /// Edge collapse without new vertices (the variable-resolution model).
+    Varres,
 }
 
 impl MethodArg {
@@ -35,6 +37,7 @@ impl MethodArg {
             MethodArg::Greedy => Method::Greedy,
             MethodArg::Delaunay => Method::Delaunay,
             MethodArg::Qem => Method::Qem,
+            MethodArg::Varres => Method::Varres,
         }
     }
 }
@@ -122,6 +125,8 @@ pub enum MethodName {
     Delaunay,
     /// QEM edge contraction on the height map.
     Qem,
+    /// Edge collapse without new vertices (the variable-resolution model).
+    Varres,
     /// The delatin crate.
     Delatin,
     /// The martini crate.
@@ -135,6 +140,7 @@ impl From<MethodName> for Method {
             MethodName::Greedy => Method::Greedy,
             MethodName::Delaunay => Method::Delaunay,
             MethodName::Qem => Method::Qem,
+            MethodName::Varres => Method::Varres,
             MethodName::Delatin => Method::Delatin,
             MethodName::Martini => Method::Martini,
         }
