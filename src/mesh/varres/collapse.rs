@@ -87,13 +87,33 @@ pub fn is_valid(topology: &Topology, star: &Star, to_star: &Star, from: u32, to:
         .all(|w| !to_star.ring.contains(w))
 }
 
-/// The cost of collapsing `from` (star `star`) onto `to` under `metric`.
-pub fn cost(
+/// `(column, row, height)` of the samples the star of `from` covers: those its
+/// triangles hold, its ring and `from` itself (the same for every edge of `from`, so
+/// gathered once).
+pub fn covered_samples(
     topology: &Topology,
     heights: &[f64],
     owned: &Owned,
-    metric: ErrorMetric,
     star: &Star,
+    from: u32,
+    out: &mut Vec<[f64; 3]>,
+) {
+    out.clear();
+    let samples = star.triangles.iter().flat_map(|&t| owned.of(t));
+    let all = samples.chain(star.ring.iter().copied()).chain([from]);
+    out.extend(all.map(|s| {
+        let (x, y) = topology.xy(s);
+        [x as f64, y as f64, heights[s as usize]]
+    }));
+}
+
+/// The cost of collapsing `from` (star `star`, covering `covered`) onto `to` under
+/// `metric`.
+pub fn cost(
+    topology: &Topology,
+    heights: &[f64],
+    metric: ErrorMetric,
+    (star, covered): (&Star, &[[f64; 3]]),
     from: u32,
     to: u32,
 ) -> f64 {
@@ -110,11 +130,9 @@ pub fn cost(
             let Some(plane) = Plane::average(topology, heights, after) else {
                 return f64::INFINITY;
             };
-            let covered = star.triangles.iter().flat_map(|&t| owned.of(t));
             covered
-                .chain(star.ring.iter().copied())
-                .chain(std::iter::once(from))
-                .map(|s| plane.distance(topology, heights, s))
+                .iter()
+                .map(|&p| plane.distance_to(p))
                 .fold(0.0, f64::max)
         }
     }

@@ -69,7 +69,11 @@ impl Plane {
 
     /// Vertical distance from sample `v` to the plane.
     pub fn distance(&self, topology: &Topology, heights: &[f64], v: u32) -> f64 {
-        let [x, y, z] = point(topology, heights, v);
+        self.distance_to(point(topology, heights, v))
+    }
+
+    /// Vertical distance from the point `(x, y, z)` to the plane.
+    pub fn distance_to(&self, [x, y, z]: [f64; 3]) -> f64 {
         (z - self.z0 - self.gx * (x - self.x0) - self.gy * (y - self.y0)).abs()
     }
 }

@@ -22,6 +22,7 @@ pub mod collapse;
 pub mod error;
 pub mod extract;
 pub mod history;
+pub mod table;
 pub mod topology;
 
 use std::cmp::Reverse;
@@ -59,7 +60,7 @@ pub struct VarresOptions {
     /// feature edge.
     pub feature_angle_degrees: f64,
     /// Heights are multiplied by this for normals and edge lengths (columns and rows
-    /// one unit apart); `None`: the DEM's relief scaled to its larger side.
+    /// one unit apart); `None`: scaled to a mean slope of [`DEFAULT_MEAN_SLOPE_DEGREES`].
     pub z_scale: Option<f64>,
     /// Stop once at most this many triangles remain (0: simplify as far as valid
     /// collapses go).
@@ -200,18 +201,31 @@ fn check_grid(grid: &Grid) -> Result<(), VarresError> {
     }
 }
 
-/// The default height scale: the relief as tall as the grid's larger side.
-fn unit_cube_z_scale(grid: &Grid) -> f64 {
-    let (lo, hi) = grid
-        .valid
-        .iter_ones()
-        .map(|s| grid.heights[s])
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| {
-            (lo.min(z), hi.max(z))
-        });
-    let relief = hi - lo;
-    if relief > 0.0 {
-        grid.width.max(grid.height) as f64 / relief
+/// The mean slope the default height scale gives a DEM: a typical terrain's, since
+/// the ground size of a cell is often unknown (fuji, normalised heights).
+pub const DEFAULT_MEAN_SLOPE_DEGREES: f64 = 10.0;
+
+/// The default height scale: heights scaled so the mean height step between
+/// neighbouring samples (along rows and columns) rises [`DEFAULT_MEAN_SLOPE_DEGREES`].
+fn mean_slope_z_scale(grid: &Grid) -> f64 {
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for s in grid.valid.iter_ones() {
+        let (x, y) = (s % grid.width, s / grid.width);
+        for t in [
+            (x + 1 < grid.width).then_some(s + 1),
+            (y + 1 < grid.height).then_some(s + grid.width),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if grid.valid[t] {
+                sum += (grid.heights[t] - grid.heights[s]).abs();
+                count += 1;
+            }
+        }
+    }
+    if sum > 0.0 {
+        DEFAULT_MEAN_SLOPE_DEGREES.to_radians().tan() * count as f64 / sum
     } else {
         1.0
     }
@@ -237,6 +251,8 @@ struct Simplifier<'a> {
     star: Star,
     to_star: Star,
     created: Vec<u32>,
+    /// The samples a star covers (scratch).
+    covered: Vec<[f64; 3]>,
 }
 
 impl<'a> Simplifier<'a> {
@@ -245,7 +261,7 @@ impl<'a> Simplifier<'a> {
         let triangles = topology.corners.len();
         let rule = FeatureRule {
             cos_angle: options.feature_angle_degrees.to_radians().cos(),
-            z_scale: options.z_scale.unwrap_or_else(|| unit_cube_z_scale(&grid)),
+            z_scale: options.z_scale.unwrap_or_else(|| mean_slope_z_scale(&grid)),
         };
         let mut simplifier = Simplifier {
             grid,
@@ -261,6 +277,7 @@ impl<'a> Simplifier<'a> {
             star: Star::default(),
             to_star: Star::default(),
             created: Vec::new(),
+            covered: Vec::new(),
         };
         for v in 0..grid.len() as u32 {
             simplifier.refresh(v);
@@ -325,39 +342,57 @@ impl<'a> Simplifier<'a> {
         }
     }
 
-    /// The candidate of vertex `v` under the options' rule, if any edge is valid.
+    /// The candidate of vertex `v` under the options' rule, if any edge is valid:
+    /// its allowed edges ranked by length or by cost, the first valid one.
     fn find_candidate(&mut self, v: u32) -> Option<(u32, f64)> {
         let mut star = std::mem::take(&mut self.star);
         self.topology.star(v, &mut star);
         let class = classify(&self.topology, self.grid.heights, &self.rule, v, &star);
-        let mut targets: Vec<u32> = class.targets(&star).to_vec();
-        if self.options.candidate == CandidateRule::Shortest {
-            targets.sort_by(|&a, &b| self.length(v, a).total_cmp(&self.length(v, b)));
-        }
-        let mut best: Option<(u32, f64)> = None;
-        for to in targets {
-            self.topology.star(to, &mut self.to_star);
-            if !collapse::is_valid(&self.topology, &star, &self.to_star, v, to) {
-                continue;
-            }
-            let cost = collapse::cost(
+        let targets = class.targets(&star);
+        let mut found = None;
+        if !targets.is_empty() {
+            collapse::covered_samples(
                 &self.topology,
                 self.grid.heights,
                 &self.owned,
-                self.options.metric,
                 &star,
                 v,
-                to,
+                &mut self.covered,
             );
-            if best.is_none_or(|(_, c)| cost < c) {
-                best = Some((to, cost));
-            }
-            if self.options.candidate == CandidateRule::Shortest {
-                break;
-            }
+            let cost = |to| self.cost(&star, v, to);
+            let mut ranked: Vec<(f64, u32)> = match self.options.candidate {
+                CandidateRule::Shortest => {
+                    targets.iter().map(|&to| (self.length(v, to), to)).collect()
+                }
+                CandidateRule::LeastError => targets.iter().map(|&to| (cost(to), to)).collect(),
+            };
+            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+            found = ranked.into_iter().find_map(|(key, to)| {
+                self.topology.star(to, &mut self.to_star);
+                collapse::is_valid(&self.topology, &star, &self.to_star, v, to).then(|| match self
+                    .options
+                    .candidate
+                {
+                    CandidateRule::Shortest => (to, self.cost(&star, v, to)),
+                    CandidateRule::LeastError => (to, key),
+                })
+            });
         }
         self.star = star;
-        best
+        found
+    }
+
+    /// The cost of collapsing `from` (star `star`, its samples in `self.covered`)
+    /// onto `to`.
+    fn cost(&self, star: &Star, from: u32, to: u32) -> f64 {
+        collapse::cost(
+            &self.topology,
+            self.grid.heights,
+            self.options.metric,
+            (star, &self.covered),
+            from,
+            to,
+        )
     }
 
     /// Squared length of edge `a`–`b`, heights scaled as for normals.
