@@ -260,3 +260,61 @@ fn a_window_of_alps_srtm_voids_is_meshed_validly() {
         );
     }
 }
+
+#[test]
+fn mesh_method_varres_meets_a_budget_and_a_max_error() {
+    let dir = support::scratch("cli-varres-tests");
+    let input = support::sample("jacksboro_fault.tif");
+    let obj = dir.path().join("m.obj");
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let run = |budget: &[&str]| {
+        let mut args = vec!["mesh".to_string(), path(&input), "-o".into(), path(&obj)];
+        args.extend(["--method", "varres", "--json"].map(String::from));
+        args.extend(budget.iter().map(|s| s.to_string()));
+        support::json(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let budget = run(&["--triangles", "3000"]);
+    assert_eq!(budget["method"], "varres");
+    let triangles = budget["triangles"].as_u64().unwrap();
+    assert!((2990..=3000).contains(&triangles), "{triangles}");
+    let faces = std::fs::read_to_string(&obj).unwrap();
+    assert_eq!(
+        faces.lines().filter(|l| l.starts_with("f ")).count() as u64,
+        triangles
+    );
+    let tolerance = run(&["--mesh-error", "20"]);
+    assert!(tolerance["error"]["max_error"].as_f64().unwrap() <= 20.0);
+    assert_eq!(tolerance["error"]["uncovered_samples"], 0);
+    assert!(tolerance["triangles"].as_u64().unwrap() < 275_772 / 2);
+}
+
+#[test]
+fn the_metric_table_has_both_metrics_at_the_papers_ratios() {
+    let input = support::sample("jacksboro_fault.tif");
+    let report = support::json(&[
+        "compare-meshers",
+        input.to_str().unwrap(),
+        "--varres-metrics",
+        "--window",
+        "100,100,120,120",
+        "--json",
+    ]);
+    let rows = report["varres_metrics"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for (k, row) in rows.iter().enumerate() {
+        let metric = if k < 3 {
+            "average_plane"
+        } else {
+            "vertex_plane"
+        };
+        assert_eq!(row["metric"], metric);
+        let ratio = row["ratio_percent"].as_f64().unwrap();
+        assert!((ratio - [62.0, 70.0, 81.0][k % 3]).abs() < 0.5, "{ratio}");
+        assert!(row["mean_error"].as_f64().unwrap() > 0.0);
+    }
+    let mean = |k: usize| rows[k]["mean_error"].as_f64().unwrap();
+    assert!(
+        mean(0) < mean(1) && mean(1) < mean(2),
+        "coarser meshes are further off"
+    );
+}
