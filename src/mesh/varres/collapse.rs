@@ -156,7 +156,6 @@ pub fn apply(
     for &t in &star.triangles {
         let (a, b) = far_corners(topology, t, from);
         let outer = topology.neighbours[t as usize][(topology.slot(t, from) + 1) % 3];
-        topology.alive[t as usize] = false;
         if a == to || b == to {
             if outer != NONE {
                 open.push((b, a, outer, topology.edge_slot(outer, b, a)));

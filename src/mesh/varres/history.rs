@@ -117,9 +117,4 @@ impl History {
     pub fn error_of_step(&self, step: usize) -> f64 {
         step.checked_sub(1).map_or(0.0, |k| self.step_error[k])
     }
-
-    /// Bytes the model holds.
-    pub fn heap_bytes(&self) -> usize {
-        self.corners.len() * 20 + self.step_error.len() * 16
-    }
 }

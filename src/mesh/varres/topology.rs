@@ -1,7 +1,7 @@
 //! The live triangle mesh the simplification edits: every triangle ever made (dead ones
-//! stay, the history needs their corners), the neighbour across each edge, one live
-//! triangle at each vertex, and the stars (fans) of vertices found by rotating
-//! through neighbours.
+//! stay, unreachable from the live ones, because the history needs their corners), the
+//! neighbour across each edge, one live triangle at each vertex, and the stars (fans)
+//! of vertices found by rotating through neighbours.
 
 use crate::mesh::qem::flags::Diagonal;
 use crate::mesh::qem::grid::Grid;
@@ -18,8 +18,6 @@ pub struct Topology {
     pub corners: Vec<[u32; 3]>,
     /// `neighbours[t][i]`: the triangle across the edge from corner `i` to `i + 1`.
     pub neighbours: Vec<[u32; 3]>,
-    /// Whether each triangle is in the current mesh.
-    pub alive: Vec<bool>,
     /// One live triangle at each sample ([`NONE`]: not a vertex).
     pub corner_of: Vec<u32>,
     /// Samples whose triangles do not form one fan (two cells meeting at a corner
@@ -59,7 +57,6 @@ impl Topology {
         let neighbours = link_edges(&corners);
         let mut topology = Topology {
             width: grid.width,
-            alive: vec![true; corners.len()],
             corner_of: vec![NONE; grid.len()],
             non_manifold: vec![false; grid.len()],
             corners,
@@ -67,11 +64,6 @@ impl Topology {
         };
         topology.mark_non_manifold();
         topology
-    }
-
-    /// Live triangles.
-    pub fn live_triangles(&self) -> usize {
-        self.alive.iter().filter(|&&a| a).count()
     }
 
     fn mark_non_manifold(&mut self) {
@@ -155,7 +147,6 @@ impl Topology {
     pub fn push(&mut self, corners: [u32; 3], neighbours: [u32; 3]) -> u32 {
         self.corners.push(corners);
         self.neighbours.push(neighbours);
-        self.alive.push(true);
         (self.corners.len() - 1) as u32
     }
 
