@@ -17,6 +17,7 @@ use crate::mesh::cells::SplitRule;
 use crate::mesh::greedy::{greedy_mesh, GreedyError, GreedyTarget};
 use crate::mesh::qem::{qem_mesh, QemError, QemTarget};
 use crate::mesh::rasterise::mesh_error;
+use crate::mesh::varres::{varres_mesh, VarresError, VarresTarget};
 use crate::mesh::{GridMesh, MeshTarget, Mesher};
 
 /// Passes of error-lowering flips after greedy insertion (more change little: measured
@@ -35,6 +36,9 @@ pub enum Method {
     Delaunay,
     /// QEM edge contraction straight on the height map (seed paper 000).
     Qem,
+    /// Edge collapse without new vertices, out of the variable-resolution model (seed
+    /// paper 001).
+    Varres,
     /// The `delatin` crate (budgets searched over its max error).
     Delatin,
     /// The `martini` crate (2^k + 1 grids; budgets searched over its max error).
@@ -43,11 +47,12 @@ pub enum Method {
 
 impl Method {
     /// Every method, ours first.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 7] = [
         Method::Zerotree,
         Method::Greedy,
         Method::Delaunay,
         Method::Qem,
+        Method::Varres,
         Method::Delatin,
         Method::Martini,
     ];
@@ -59,6 +64,7 @@ impl Method {
             Method::Greedy => "greedy",
             Method::Delaunay => "delaunay",
             Method::Qem => "qem",
+            Method::Varres => "varres",
             Method::Delatin => "delatin",
             Method::Martini => "martini",
         }
@@ -84,6 +90,9 @@ pub enum MeshersError {
     /// The QEM mesher refused the grid.
     #[error("{0}")]
     Qem(#[from] QemError),
+    /// The variable-resolution mesher refused the grid.
+    #[error("{0}")]
+    Varres(#[from] VarresError),
     /// The zerotree mesher's encode or decode failed.
     #[error("{0}")]
     Codec(#[from] CodecError),
@@ -156,6 +165,13 @@ pub fn build(
                 Budget::MaxError(e) => QemTarget::MaxError(e),
             };
             Ok(qem_mesh(w, h, &surface.heights, &surface.valid, target)?.mesh)
+        }
+        Method::Varres => {
+            let target = match budget {
+                Budget::Triangles(n) => VarresTarget::Triangles(n),
+                Budget::MaxError(e) => VarresTarget::MaxError(e),
+            };
+            Ok(varres_mesh(w, h, &surface.heights, &surface.valid, target)?)
         }
         Method::Zerotree => zerotree(raster, surface, budget),
         Method::Delatin | Method::Martini => {

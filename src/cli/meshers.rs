@@ -26,6 +26,8 @@ pub enum MethodArg {
     Delaunay,
     /// QEM edge contraction straight on the height map.
     Qem,
+    /// Edge collapse without new vertices (the variable-resolution model).
+    Varres,
 }
 
 impl MethodArg {
@@ -35,6 +37,7 @@ impl MethodArg {
             MethodArg::Greedy => Method::Greedy,
             MethodArg::Delaunay => Method::Delaunay,
             MethodArg::Qem => Method::Qem,
+            MethodArg::Varres => Method::Varres,
         }
     }
 }
@@ -122,6 +125,8 @@ pub enum MethodName {
     Delaunay,
     /// QEM edge contraction on the height map.
     Qem,
+    /// Edge collapse without new vertices (the variable-resolution model).
+    Varres,
     /// The delatin crate.
     Delatin,
     /// The martini crate.
@@ -135,6 +140,7 @@ impl From<MethodName> for Method {
             MethodName::Greedy => Method::Greedy,
             MethodName::Delaunay => Method::Delaunay,
             MethodName::Qem => Method::Qem,
+            MethodName::Varres => Method::Varres,
             MethodName::Delatin => Method::Delatin,
             MethodName::Martini => Method::Martini,
         }
@@ -149,7 +155,7 @@ pub struct CompareArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        required_unless_present_any = ["mesh_errors", "qem_memory"]
+        required_unless_present_any = ["mesh_errors", "qem_memory", "varres_metrics"]
     )]
     triangles: Vec<usize>,
     /// Comma-separated height tolerances (data units): also the mesh of each method
@@ -172,6 +178,10 @@ pub struct CompareArgs {
     /// the grid's triangles: triangle-mesh bytes against raster + flag map, heap peak).
     #[arg(long, conflicts_with_all = ["triangles", "mesh_errors", "methods", "plot"])]
     qem_memory: bool,
+    /// Print seed paper 001's Table 1 instead (its average-plane metric against the
+    /// distance-to-plane metric: mean distance at 62, 70 and 81 % of vertices removed).
+    #[arg(long, conflicts_with_all = ["triangles", "mesh_errors", "methods", "plot", "qem_memory"])]
+    varres_metrics: bool,
     #[command(flatten)]
     input_args: InputArgs,
 }
@@ -231,6 +241,9 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     }
     if args.qem_memory {
         return qem_memory(args, &raster);
+    }
+    if args.varres_metrics {
+        return super::varres::varres_metrics(&args.input, &raster, args.json);
     }
     let (rows, skipped) =
         with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));

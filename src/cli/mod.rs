@@ -9,6 +9,7 @@ mod report;
 mod synth;
 mod tiled_coding;
 mod tiled_info;
+mod varres;
 mod verify;
 mod view;
 

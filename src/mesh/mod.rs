@@ -15,6 +15,7 @@ pub mod pyramid;
 pub mod qem;
 pub mod rasterise;
 pub mod triangulate;
+pub mod varres;
 
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
