@@ -141,6 +141,8 @@ fn mesh_error_bound_holds_in_every_format() {
         let out = dir.path().join(format!("fault.{ext}"));
         let report = json(&[
             "mesh",
+            "--method",
+            "zerotree",
             s(&input),
             "-o",
             s(&out),
@@ -175,6 +177,8 @@ fn looser_tolerances_give_fewer_triangles() {
         let out = dir.path().join(format!("e{e}.ply"));
         let report = json(&[
             "mesh",
+            "--method",
+            "zerotree",
             s(&input),
             "-o",
             s(&out),
@@ -201,6 +205,8 @@ fn triangle_budgets_hold_for_both_searches() {
             let out = dir.path().join(format!("{search}-{budget}.ply"));
             let report = json(&[
                 "mesh",
+                "--method",
+                "zerotree",
                 s(&input),
                 "-o",
                 s(&out),
@@ -727,7 +733,15 @@ fn voids_meshes_keep_the_bound_and_count_cut_off_samples() {
         (&["--threshold", "64", "--rule", "own"], None),
     ] {
         let out = dir.path().join("voids.ply");
-        let mut full = vec!["mesh", s(&input), "-o", s(&out), "--json"];
+        let mut full = vec![
+            "mesh",
+            "--method",
+            "zerotree",
+            s(&input),
+            "-o",
+            s(&out),
+            "--json",
+        ];
         full.extend_from_slice(args);
         let report = json(&full);
         let mesh = check_mesh_report(&report, &out);

@@ -99,6 +99,31 @@ fn greedy_meets_a_tolerance_with_fewer_triangles_than_delaunay() {
 }
 
 #[test]
+fn mesh_defaults_to_greedy_unless_a_stream_is_asked_for() {
+    let dir = scratch();
+    let input = sample("jacksboro_fault.tif");
+    let out = dir.path().join("default.ply");
+    let method_of = |extra: &[&str]| {
+        let mut args = vec!["mesh", s(&input), "-o", s(&out), "--json"];
+        args.extend_from_slice(extra);
+        let report = json(&args);
+        // The zerotree report nests its mesh; the direct one names its method.
+        match report["method"].as_str() {
+            Some(method) => method.to_string(),
+            None => {
+                assert!(report["mesh"].is_object(), "{report}");
+                "zerotree".to_string()
+            }
+        }
+    };
+    assert_eq!(method_of(&[]), "greedy");
+    assert_eq!(method_of(&["--mesh-error", "5"]), "greedy");
+    assert_eq!(method_of(&["--threshold", "64"]), "zerotree");
+    assert_eq!(method_of(&["--bpp", "1"]), "zerotree");
+    assert_eq!(method_of(&["--method", "zerotree"]), "zerotree");
+}
+
+#[test]
 fn greedy_leaves_nodata_out() {
     let dir = scratch();
     let out = dir.path().join("voids.obj");

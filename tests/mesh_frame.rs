@@ -87,6 +87,8 @@ fn geographic_glb_is_in_metres_with_its_frame_and_a_matte_material() {
     let out = dir.path().join("fault.glb");
     let report = json(&[
         "mesh",
+        "--method",
+        "zerotree",
         s(&sample("jacksboro_fault.tif")),
         "-o",
         s(&out),
@@ -218,7 +220,17 @@ fn projected_dems_keep_their_coordinates() {
     let mut files = Vec::new();
     for xy in ["geo", "degrees"] {
         let out = dir.path().join(format!("utm-{xy}.ply"));
-        let report = json(&["mesh", s(&input), "-o", s(&out), "--xy", xy, "--json"]);
+        let report = json(&[
+            "mesh",
+            "--method",
+            "zerotree",
+            s(&input),
+            "-o",
+            s(&out),
+            "--xy",
+            xy,
+            "--json",
+        ]);
         assert_eq!(report["mesh"]["xy_units"], "georeferenced");
         assert_eq!(report["mesh"]["frame"]["crs"], "EPSG:32632");
         files.push(std::fs::read(&out).unwrap());
@@ -230,7 +242,7 @@ fn projected_dems_keep_their_coordinates() {
     let header = String::from_utf8_lossy(&files[0][..200]).into_owned();
     assert!(header.contains("comment frame georeferenced"), "{header}");
     let out = dir.path().join("utm.obj");
-    stdout(&["mesh", s(&input), "-o", s(&out)]);
+    stdout(&["mesh", "--method", "zerotree", s(&input), "-o", s(&out)]);
     let v = obj_vertices(&std::fs::read_to_string(&out).unwrap());
     assert!(v.contains(&[500_015.0, 6_399_985.0, 10.0]), "{v:?}");
     assert!(v.contains(&[500_075.0, 6_399_925.0, 20.0]), "{v:?}");
@@ -251,6 +263,8 @@ fn shared_projected_dem_stays_in_utm_needs_shared_dems() {
     let out = dir.path().join("utm.obj");
     let report = json(&[
         "mesh",
+        "--method",
+        "zerotree",
         s(&input),
         "-o",
         s(&out),
@@ -314,11 +328,19 @@ fn uncovered_samples_are_reported_beside_the_errors() {
         "1 2 -9999 5\n3 4 -9999 6\n-9999 -9999 -9999 -9999\n7 -9999 8 9",
     );
     let out = dir.path().join("islands.obj");
-    let report = json(&["mesh", s(&input), "-o", s(&out), "--json"]);
+    let report = json(&[
+        "mesh",
+        "--method",
+        "zerotree",
+        s(&input),
+        "-o",
+        s(&out),
+        "--json",
+    ]);
     let e = &report["mesh"]["error_vs_original"];
     assert_eq!(e["compared_samples"], 4);
     assert_eq!(e["uncovered_samples"], 5);
-    let text = stdout(&["mesh", s(&input), "-o", s(&out)]);
+    let text = stdout(&["mesh", "--method", "zerotree", s(&input), "-o", s(&out)]);
     let lines: Vec<&str> = text.lines().filter(|l| l.contains("RMSE")).collect();
     assert_eq!(lines.len(), 2, "{text}");
     for line in lines {

@@ -7,7 +7,7 @@ use std::time::Instant;
 use clap::ValueEnum;
 use serde::Serialize;
 use wavemesh::lod::Surface;
-use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
+use wavemesh::mesh::export::{write_mesh, Placement};
 use wavemesh::mesh::rasterise::{mesh_error, MeshError};
 use wavemesh::meshers::{self, Budget, MeshRow, Method};
 use wavemesh_codec::Raster;
@@ -68,8 +68,7 @@ pub fn mesh_direct(
     (input, output): (&Path, &Path),
     json: bool,
 ) -> Result<(), CliError> {
-    let format = MeshFormat::from_path(output)
-        .ok_or_else(|| CliError::Usage(format!("{}: unknown mesh format", output.display())))?;
+    let format = super::mesh::mesh_format(output)?;
     let surface = Surface::of(raster);
     let start = Instant::now();
     let (mesh, peak) = with_progress("meshing", || {

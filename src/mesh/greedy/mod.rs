@@ -3,8 +3,9 @@
 //! repeat until a triangle budget or a height tolerance is met.
 //!
 //! Stages, one module each: [`triangulation`] (half-edges: split a triangle or an edge,
-//! flip an edge) and [`scan`] (a triangle's samples: its worst one, its squared error).
-//! This module drives them. After each insertion the edges around the new vertex are
+//! flip an edge), [`scan`] (a triangle's samples: its worst one, its squared error),
+//! [`queue`] (triangles worst first) and [`flips`] (the data-dependent flips). This
+//! module drives them. After each insertion the edges around the new vertex are
 //! legalised by the Delaunay empty-circle test (what Delatin does); after the last one,
 //! [`GreedyMesher::optimise_flips`] may flip edges that lower the squared error (a
 //! data-dependent triangulation of the same vertices). Data-dependent flips during
@@ -13,15 +14,16 @@
 //! Nodata: a triangle that covers nodata and valid samples besides its corners splits
 //! first (infinite error); triangles still covering nodata at the end are left out.
 
+pub mod flips;
+pub mod queue;
 pub mod scan;
 pub mod triangulation;
-
-use std::collections::BinaryHeap;
 
 use bitvec::prelude::*;
 
 use super::GridMesh;
-use scan::{assess, errors, Assessment, Grid};
+use queue::WorstFirst;
+use scan::{assess, Assessment, Grid};
 use triangulation::{in_circle, orient, Triangulation, NONE};
 
 /// When insertion stops.
@@ -52,25 +54,17 @@ pub enum GreedyError {
     SizeMismatch(usize, usize),
 }
 
-/// A triangle waiting in the queue: its error, and the version of its slot it was
-/// assessed at (an entry is stale once the slot is rewritten).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-struct Entry {
-    error_bits: u64,
-    triangle: u32,
-    version: u32,
-}
-
 /// Greedy insertion over one grid.
 #[derive(Debug)]
 pub struct GreedyMesher<'a> {
     grid: Grid<'a>,
     tin: Triangulation,
     assessments: Vec<Assessment>,
-    versions: Vec<u32>,
-    queue: BinaryHeap<Entry>,
+    queue: WorstFirst,
     /// Triangles rewritten by the current insertion (to assess again).
     touched: Vec<u32>,
+    /// Half-edges waiting for the empty-circle test (kept to reuse its memory).
+    to_legalise: Vec<u32>,
     /// Triangles with at most this error are never split, so never queued.
     settled: f64,
     /// Whether a triangle over a tolerance first tries a flip that brings it within.
@@ -97,9 +91,9 @@ impl<'a> GreedyMesher<'a> {
             grid,
             tin: Triangulation::rectangle(grid.width, grid.height),
             assessments: Vec::new(),
-            versions: Vec::new(),
-            queue: BinaryHeap::new(),
+            queue: WorstFirst::default(),
             touched: vec![0, 1],
+            to_legalise: Vec::new(),
             settled: 0.0,
             resolving_flips: false,
         };
@@ -125,7 +119,7 @@ impl<'a> GreedyMesher<'a> {
             // Queued triangles within the tolerance stay; new ones are not queued.
             self.settled = self.settled.max(e);
         }
-        while let Some(worst) = self.worst() {
+        while let Some(worst) = self.queue.worst() {
             let error = self.assessments[worst as usize].error;
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
@@ -143,73 +137,6 @@ impl<'a> GreedyMesher<'a> {
             }
             self.insert(worst);
         }
-    }
-
-    /// Local optimisation after insertion: passes over every interior edge, flipping
-    /// it when the other diagonal of its (convex) quadrilateral has a smaller squared
-    /// error and a largest error no worse than `limit` (or than the current diagonal's
-    /// when `limit` is `None`); stops after a pass without flips or `passes` passes.
-    /// Returns the mesh and the flips made. The flipped triangles are not assessed
-    /// again (they cover no nodata, as the quadrilaterals they come from), so this ends
-    /// the insertion.
-    pub fn optimise_flips(mut self, limit: Option<f64>, passes: usize) -> (GridMesh, usize) {
-        let mut cache: Vec<(f64, f64)> = vec![(f64::NAN, 0.0); self.triangle_count()];
-        let mut flips = 0;
-        for _ in 0..passes {
-            let before = flips;
-            for e in 0..self.tin.corners.len() as u32 {
-                if self.try_improving_flip(e, limit, &mut cache) {
-                    flips += 1;
-                }
-            }
-            if flips == before {
-                break;
-            }
-        }
-        (self.mesh(), flips)
-    }
-
-    /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would (`cache` holds
-    /// each triangle's errors, NaN when not yet known).
-    fn try_improving_flip(&mut self, e: u32, limit: Option<f64>, cache: &mut [(f64, f64)]) -> bool {
-        let f = self.tin.twins[e as usize];
-        if f == NONE || f < e {
-            return false;
-        }
-        let (t1, t2) = (e / 3, f / 3);
-        let (a1, a2) = (
-            &self.assessments[t1 as usize],
-            &self.assessments[t2 as usize],
-        );
-        if a1.touches_void || a2.touches_void {
-            return false;
-        }
-        let [a, b, c, d] = self
-            .tin
-            .quad(e)
-            .expect("interior")
-            .map(|v| self.tin.points[v as usize]);
-        if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
-            return false;
-        }
-        for (t, p) in [(t1, [a, b, c]), (t2, [b, a, d])] {
-            if cache[t as usize].0.is_nan() {
-                cache[t as usize] = errors(&self.grid, p);
-            }
-        }
-        let now = (
-            cache[t1 as usize].0.max(cache[t2 as usize].0),
-            cache[t1 as usize].1 + cache[t2 as usize].1,
-        );
-        let (new1, new2) = (errors(&self.grid, [c, a, d]), errors(&self.grid, [d, b, c]));
-        let allowed = limit.unwrap_or(now.0);
-        if new1.0.max(new2.0) > allowed || new1.1 + new2.1 >= now.1 * (1.0 - 1e-12) {
-            return false;
-        }
-        self.tin.flip(e);
-        cache[t1 as usize] = new1;
-        cache[t2 as usize] = new2;
-        true
     }
 
     /// The mesh: every triangle that covers no nodata.
@@ -238,57 +165,20 @@ impl<'a> GreedyMesher<'a> {
         }
     }
 
-    /// The triangle with the largest error (stale queue entries dropped on the way).
-    fn worst(&mut self) -> Option<u32> {
-        while let Some(top) = self.queue.peek() {
-            if self.versions[top.triangle as usize] == top.version {
-                return Some(top.triangle);
-            }
-            self.queue.pop();
-        }
-        None
+    /// (column, row) of triangle `t`'s candidate.
+    fn candidate_point(&self, t: u32) -> (i64, i64) {
+        let s = self.assessments[t as usize].candidate as usize;
+        ((s % self.grid.width) as i64, (s / self.grid.width) as i64)
     }
 
     /// Where triangle `t`'s candidate falls: `Some(half-edge)` when on one of its sides.
     fn side_holding(&self, t: u32) -> Option<u32> {
-        let s = self.assessments[t as usize].candidate as usize;
-        let p = ((s % self.grid.width) as i64, (s / self.grid.width) as i64);
+        let p = self.candidate_point(t);
         let [a, b, c] = self.tin.triangle_points(t);
         let sides = [(a, b), (b, c), (c, a)];
         (0..3)
             .find(|&k| orient(sides[k].0, sides[k].1, p) == 0)
             .map(|k| 3 * t + k as u32)
-    }
-
-    /// Flips a side of triangle `t` (over `tolerance`) when both triangles the flip
-    /// makes are within `tolerance`: the tolerance met there without a new vertex.
-    fn resolving_flip(&mut self, t: u32, tolerance: f64) -> bool {
-        if self.assessments[t as usize].touches_void {
-            return false;
-        }
-        for e in 3 * t..3 * t + 3 {
-            let Some(quad) = self.tin.quad(e) else {
-                continue;
-            };
-            let [a, b, c, d] = quad.map(|v| self.tin.points[v as usize]);
-            if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
-                continue;
-            }
-            let first = assess(&self.grid, [c, a, d]);
-            if first.error > tolerance || first.touches_void {
-                continue;
-            }
-            let second = assess(&self.grid, [d, b, c]);
-            if second.error > tolerance || second.touches_void {
-                continue;
-            }
-            let f = self.tin.twins[e as usize];
-            self.tin.flip(e);
-            self.touched.extend_from_slice(&[e / 3, f / 3]);
-            self.assess_touched();
-            return true;
-        }
-        false
     }
 
     /// Triangles inserting triangle `t`'s candidate adds.
@@ -301,30 +191,31 @@ impl<'a> GreedyMesher<'a> {
 
     /// Inserts triangle `t`'s candidate, legalises around it and queues what changed.
     fn insert(&mut self, t: u32) {
-        let s = self.assessments[t as usize].candidate as usize;
+        let (x, y) = self.candidate_point(t);
         let side = self.side_holding(t);
-        let p = self
-            .tin
-            .add_point((s % self.grid.width) as i64, (s / self.grid.width) as i64);
-        let (made, opposite) = match side {
-            Some(e) => self.tin.split_edge(e, p),
+        let p = self.tin.add_point(x, y);
+        let mut to_legalise = std::mem::take(&mut self.to_legalise);
+        match side {
+            Some(e) => {
+                let (made, opposite) = self.tin.split_edge(e, p);
+                self.touched.extend_from_slice(&made);
+                to_legalise.extend_from_slice(&opposite);
+            }
             None => {
                 let (made, opposite) = self.tin.split_triangle(t, p);
-                (made.to_vec(), opposite.to_vec())
+                self.touched.extend_from_slice(&made);
+                to_legalise.extend_from_slice(&opposite);
             }
-        };
-        self.touched.extend_from_slice(&made);
-        for e in opposite {
-            self.legalise(e);
         }
+        self.legalise(&mut to_legalise);
+        self.to_legalise = to_legalise;
         self.assess_touched();
     }
 
-    /// Flips the edge of `e` (opposite the new vertex) while the new vertex lies inside
-    /// the circle of the triangle across it, then the two edges that face the vertex
-    /// after the flip.
-    fn legalise(&mut self, e: u32) {
-        let mut stack = vec![e];
+    /// Flips each edge of `stack` (opposite the new vertex) while the new vertex lies
+    /// inside the circle of the triangle across it, then the two edges that face the
+    /// vertex after the flip; empties `stack`.
+    fn legalise(&mut self, stack: &mut Vec<u32>) {
         while let Some(e) = stack.pop() {
             if !self.violates_delaunay(e) {
                 continue;
@@ -338,11 +229,20 @@ impl<'a> GreedyMesher<'a> {
     /// Whether the far corner `d` across `e` (`a → b` in triangle `(a, b, c)`, `c` the
     /// new vertex) lies inside the circle through `a`, `b`, `c`.
     fn violates_delaunay(&self, e: u32) -> bool {
-        let Some(quad) = self.tin.quad(e) else {
+        let Some([a, b, c, d]) = self.tin.quad_points(e) else {
             return false;
         };
-        let [a, b, c, d] = quad.map(|v| self.tin.points[v as usize]);
         in_circle(a, b, c, d)
+    }
+
+    /// Records triangle `t`'s assessment and queues it when it is over the settled error.
+    fn store(&mut self, t: u32, assessment: Assessment) {
+        self.assessments[t as usize] = assessment;
+        if assessment.error > self.settled {
+            self.queue.set(t, assessment.error);
+        } else {
+            self.queue.remove(t);
+        }
     }
 
     /// Assesses every touched triangle again and queues it.
@@ -350,27 +250,17 @@ impl<'a> GreedyMesher<'a> {
         let mut touched = std::mem::take(&mut self.touched);
         touched.sort_unstable();
         touched.dedup();
-        let count = self.triangle_count();
         self.assessments.resize(
-            count,
+            self.triangle_count(),
             Assessment {
                 error: 0.0,
                 candidate: u32::MAX,
                 touches_void: false,
             },
         );
-        self.versions.resize(count, 0);
         for &t in &touched {
             let assessment = assess(&self.grid, self.tin.triangle_points(t));
-            self.assessments[t as usize] = assessment;
-            self.versions[t as usize] = self.versions[t as usize].wrapping_add(1);
-            if assessment.error > self.settled {
-                self.queue.push(Entry {
-                    error_bits: assessment.error.to_bits(),
-                    triangle: t,
-                    version: self.versions[t as usize],
-                });
-            }
+            self.store(t, assessment);
         }
         touched.clear();
         self.touched = touched;

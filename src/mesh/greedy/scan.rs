@@ -1,6 +1,9 @@
 //! Reading a triangle's samples: the grid samples on or inside it, row span by row
 //! span, against the plane through its corners — its worst sample (the next vertex to
-//! insert) and its squared error (what a data-dependent flip compares).
+//! insert), its squared error (what a data-dependent flip compares), or whether it is
+//! within a tolerance. Spans are found exactly and without a division per row
+//! ([`EdgeWalk`]); a span of valid samples is read as a flat slice ([`row_worst`],
+//! [`row_errors`]); only rows that meet nodata are read sample by sample.
 
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
@@ -22,6 +25,20 @@ impl Grid<'_> {
         (self.valid[s >> 6] >> (s & 63)) & 1 == 1
     }
 
+    /// Whether samples `first..=last` are all valid.
+    #[inline]
+    fn all_valid(&self, first: usize, last: usize) -> bool {
+        let (w0, w1) = (first >> 6, last >> 6);
+        let head = u64::MAX << (first & 63);
+        let tail = u64::MAX >> (63 - (last & 63));
+        if w0 == w1 {
+            return self.valid[w0] & head & tail == head & tail;
+        }
+        self.valid[w0] & head == head
+            && self.valid[w0 + 1..w1].iter().all(|&w| w == u64::MAX)
+            && self.valid[w1] & tail == tail
+    }
+
     /// Sample index of `(x, y)`.
     #[inline]
     pub fn sample(&self, (x, y): (i64, i64)) -> usize {
@@ -41,54 +58,227 @@ impl Grid<'_> {
     }
 }
 
-/// `⌊n / d⌋` for `d > 0`.
-#[inline]
-fn floor_div(n: i64, d: i64) -> i64 {
-    n.div_euclid(d)
+/// One side `a → b` of a counter-clockwise triangle walked down the rows it spans: on
+/// row `y` the inside is `x ≥ -⌊offset / d⌋` (a lower bound) or `x ≤ ⌊offset / d⌋` (an
+/// upper bound), where `orient(a, b, (x, y)) = ±d·x + offset`. The floor is kept as
+/// quotient and remainder and stepped by adding, so no row divides.
+#[derive(Debug, Clone, Copy)]
+struct EdgeWalk {
+    rows: (i64, i64),
+    quotient: i64,
+    remainder: i64,
+    divisor: i64,
+    step_quotient: i64,
+    step_remainder: i64,
+    lower: bool,
 }
 
-/// The columns `[lo, hi]` of row `y` where `A·x + B(y) ≥ 0` for each edge of the
-/// counter-clockwise triangle `p` (empty when `lo > hi`).
+/// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`.
 #[inline]
-fn row_span(p: &[(i64, i64); 3], y: i64, mut lo: i64, mut hi: i64) -> (i64, i64) {
-    for k in 0..3 {
-        let (a, b) = (p[k], p[(k + 1) % 3]);
-        // orient(a, b, (x, y)) = slope·x + offset.
+fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
+    if (0..d).contains(&n) {
+        (0, n)
+    } else if (-d..0).contains(&n) {
+        (-1, n + d)
+    } else {
+        (n.div_euclid(d), n.rem_euclid(d))
+    }
+}
+
+impl EdgeWalk {
+    /// The walk of side `a → b` from its top row; `None` for a horizontal side (the two
+    /// others bound every row).
+    #[inline]
+    fn new(a: (i64, i64), b: (i64, i64)) -> Option<EdgeWalk> {
         let slope = a.1 - b.1;
-        let offset = (b.0 - a.0) * (y - a.1) + (b.1 - a.1) * a.0;
-        match slope.signum() {
-            1 => lo = lo.max(-floor_div(offset, slope)),
-            -1 => hi = hi.min(floor_div(offset, -slope)),
-            _ if offset < 0 => return (1, 0),
-            _ => {}
+        if slope == 0 {
+            return None;
+        }
+        let top = if a.1 < b.1 { a } else { b };
+        let (divisor, lower) = (slope.abs(), slope > 0);
+        let (step_quotient, step_remainder) = floor_div_rem(b.0 - a.0, divisor);
+        // On its top row the side passes through `top`: the bound is exactly `top.0`.
+        Some(EdgeWalk {
+            rows: (a.1.min(b.1), a.1.max(b.1)),
+            quotient: if lower { -top.0 } else { top.0 },
+            remainder: 0,
+            divisor,
+            step_quotient,
+            step_remainder,
+            lower,
+        })
+    }
+
+    /// On a row this side spans: narrows `(lo, hi)` to its half-plane and moves to the
+    /// next row.
+    #[inline]
+    fn clip_and_step(&mut self, y: i64, (lo, hi): (i64, i64)) -> (i64, i64) {
+        if y < self.rows.0 || y > self.rows.1 {
+            return (lo, hi);
+        }
+        let span = if self.lower {
+            (lo.max(-self.quotient), hi)
+        } else {
+            (lo, hi.min(self.quotient))
+        };
+        self.quotient += self.step_quotient;
+        self.remainder += self.step_remainder;
+        if self.remainder >= self.divisor {
+            self.remainder -= self.divisor;
+            self.quotient += 1;
+        }
+        span
+    }
+}
+
+/// Calls `row(y, lo, hi)` for every row `y` of the counter-clockwise triangle `p` with
+/// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`.
+#[inline]
+pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
+    let (min_x, max_x) = (
+        p[0].0.min(p[1].0).min(p[2].0),
+        p[0].0.max(p[1].0).max(p[2].0),
+    );
+    let (min_y, max_y) = (
+        p[0].1.min(p[1].1).min(p[2].1),
+        p[0].1.max(p[1].1).max(p[2].1),
+    );
+    let mut walks = [
+        EdgeWalk::new(p[0], p[1]),
+        EdgeWalk::new(p[1], p[2]),
+        EdgeWalk::new(p[2], p[0]),
+    ];
+    for y in min_y..=max_y {
+        let mut span = (min_x, max_x);
+        for walk in walks.iter_mut().flatten() {
+            span = walk.clip_and_step(y, span);
+        }
+        if span.0 <= span.1 && !row(y, span.0, span.1) {
+            return;
         }
     }
-    (lo, hi)
+}
+
+/// The plane through a triangle's corners: its height at column `x` of row `y` is
+/// `row_start(y, x) + gx·k` at column `x + k`.
+#[derive(Debug, Clone, Copy)]
+struct Plane {
+    origin: (i64, i64),
+    z0: f64,
+    gx: f64,
+    gy: f64,
+}
+
+impl Plane {
+    /// The plane through the corners `p` (counter-clockwise) at heights `z`.
+    fn new(p: [(i64, i64); 3], z: [f64; 3]) -> Plane {
+        let [a, b, c] = p;
+        let area = ((b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)) as f64;
+        let (db, dc) = (z[1] - z[0], z[2] - z[0]);
+        let inverse = 1.0 / area;
+        Plane {
+            origin: a,
+            z0: z[0],
+            gx: (db * (c.1 - a.1) as f64 - dc * (b.1 - a.1) as f64) * inverse,
+            gy: (dc * (b.0 - a.0) as f64 - db * (c.0 - a.0) as f64) * inverse,
+        }
+    }
+
+    /// The plane of triangle `p` of `grid` (vertex heights as [`Grid::vertex_height`]).
+    fn of(grid: &Grid, p: [(i64, i64); 3]) -> Plane {
+        let z = [
+            grid.vertex_height(p[0]),
+            grid.vertex_height(p[1]),
+            grid.vertex_height(p[2]),
+        ];
+        Plane::new(p, z)
+    }
+
+    /// Height at `(x, y)`.
+    #[inline]
+    fn at(&self, x: i64, y: i64) -> f64 {
+        self.z0 + self.gx * (x - self.origin.0) as f64 + self.gy * (y - self.origin.1) as f64
+    }
 }
 
 /// Calls `visit(sample, z)` for every grid sample on or inside the counter-clockwise
 /// triangle `p` whose corners have heights `z`, with `z` the plane's height there.
 #[inline]
 pub fn scan(width: usize, p: [(i64, i64); 3], z: [f64; 3], mut visit: impl FnMut(usize, f64)) {
-    let [a, b, c] = p;
-    let area = ((b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)) as f64;
-    let (db, dc) = (z[1] - z[0], z[2] - z[0]);
-    let gx = (db * (c.1 - a.1) as f64 - dc * (b.1 - a.1) as f64) / area;
-    let gy = (dc * (b.0 - a.0) as f64 - db * (c.0 - a.0) as f64) / area;
-    let (min_x, max_x) = (a.0.min(b.0).min(c.0), a.0.max(b.0).max(c.0));
-    let (min_y, max_y) = (a.1.min(b.1).min(c.1), a.1.max(b.1).max(c.1));
-    for y in min_y..=max_y {
-        let (lo, hi) = row_span(&p, y, min_x, max_x);
-        if lo > hi {
-            continue;
+    let plane = Plane::new(p, z);
+    for_each_span(p, |y, lo, hi| {
+        let (row, start) = (y as usize * width, plane.at(lo, y));
+        for k in 0..=(hi - lo) {
+            visit(row + (lo + k) as usize, start + plane.gx * k as f64);
         }
-        let row = y as usize * width;
-        let mut zx = z[0] + gx * (lo - a.0) as f64 + gy * (y - a.1) as f64;
-        for x in lo..=hi {
-            visit(row + x as usize, zx);
-            zx += gx;
+        true
+    });
+}
+
+/// `|start + gx·k − heights[k]|`: the error at column `k` of a row.
+#[inline]
+fn row_error(start: f64, gx: f64, k: f64, h: f64) -> f64 {
+    (start + gx * k - h).abs()
+}
+
+/// Largest [`row_error`] over a row.
+#[inline]
+fn row_max_error(heights: &[f64], start: f64, gx: f64) -> f64 {
+    let error = |k: f64, h: f64| row_error(start, gx, k, h);
+    let mut lanes = [0.0f64; 4];
+    let mut k = 0.0;
+    let chunks = heights.chunks_exact(4);
+    let tail = chunks.remainder();
+    for chunk in chunks {
+        for j in 0..4 {
+            let e = error(k + j as f64, chunk[j]);
+            lanes[j] = if e > lanes[j] { e } else { lanes[j] };
         }
+        k += 4.0;
     }
+    for (j, &h) in tail.iter().enumerate() {
+        let e = error(k + j as f64, h);
+        lanes[j] = if e > lanes[j] { e } else { lanes[j] };
+    }
+    lanes[0].max(lanes[1]).max(lanes[2].max(lanes[3]))
+}
+
+/// Largest [`row_error`] over a row and the first column reaching it.
+#[inline]
+fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
+    let max = row_max_error(heights, start, gx);
+    let at = heights
+        .iter()
+        .enumerate()
+        .position(|(k, &h)| row_error(start, gx, k as f64, h) == max)
+        .unwrap_or(0);
+    (max, at)
+}
+
+/// Largest error and sum of squared errors of `start + gx·k` against a row.
+#[inline]
+fn row_errors(heights: &[f64], start: f64, gx: f64) -> (f64, f64) {
+    let (mut max, mut sum) = ([0.0f64; 4], [0.0f64; 4]);
+    let mut k = 0.0;
+    let chunks = heights.chunks_exact(4);
+    let tail = chunks.remainder();
+    for chunk in chunks {
+        for j in 0..4 {
+            let e = start + gx * (k + j as f64) - chunk[j];
+            max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
+            sum[j] += e * e;
+        }
+        k += 4.0;
+    }
+    for (j, &h) in tail.iter().enumerate() {
+        let e = start + gx * (k + j as f64) - h;
+        max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
+        sum[j] += e * e;
+    }
+    (
+        max[0].max(max[1]).max(max[2].max(max[3])),
+        (sum[0] + sum[1]) + (sum[2] + sum[3]),
+    )
 }
 
 /// What splitting a triangle would gain.
@@ -106,6 +296,46 @@ pub struct Assessment {
 
 /// The worst sample of the triangle with corners `p` (counter-clockwise).
 pub fn assess(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
+    assess_within(grid, p, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, p))
+}
+
+/// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
+/// up to the first row that is not); `None` when it meets nodata or goes over.
+pub fn assess_within(grid: &Grid, p: [(i64, i64); 3], limit: f64) -> Option<Assessment> {
+    let plane = Plane::of(grid, p);
+    let (mut error, mut candidate) = (-1.0f64, u32::MAX);
+    let mut within = true;
+    for_each_span(p, |y, lo, hi| {
+        let row = y as usize * grid.width;
+        if !grid.all_valid(row + lo as usize, row + hi as usize) {
+            within = false;
+            return false;
+        }
+        // Corners, exact up to rounding, lie at the ends of their rows' spans and are
+        // never candidates.
+        let lo = lo + i64::from(p.contains(&(lo, y)));
+        let hi = hi - i64::from(p.contains(&(hi, y)));
+        if lo <= hi {
+            let first = row + lo as usize;
+            let heights = &grid.heights[first..=row + hi as usize];
+            let (max, at) = row_worst(heights, plane.at(lo, y), plane.gx);
+            if max > error {
+                (error, candidate) = (max, (first + at) as u32);
+            }
+        }
+        within = error <= limit;
+        within
+    });
+    within.then_some(Assessment {
+        error: error.max(0.0),
+        candidate,
+        touches_void: false,
+    })
+}
+
+/// [`assess`] for a triangle that meets nodata, sample by sample: a valid sample next
+/// to nodata (in scan order) is its candidate, so nodata is cut out first.
+fn assess_with_nodata(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
     let corners = p.map(|q| grid.sample(q));
     let z = p.map(|q| grid.vertex_height(q));
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
@@ -164,16 +394,57 @@ pub fn assess(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
 /// Largest error and sum of squared errors over the valid samples of the triangle `p`
 /// (counter-clockwise).
 pub fn errors(grid: &Grid, p: [(i64, i64); 3]) -> (f64, f64) {
-    let z = p.map(|q| grid.vertex_height(q));
+    errors_within(grid, p, f64::INFINITY, f64::INFINITY).unwrap_or((f64::INFINITY, 0.0))
+}
+
+/// [`errors`], or `None` as soon as the largest error is over `max_limit` or the sum
+/// reaches `sum_limit` (the rest of the triangle is then not read).
+pub fn errors_within(
+    grid: &Grid,
+    p: [(i64, i64); 3],
+    max_limit: f64,
+    sum_limit: f64,
+) -> Option<(f64, f64)> {
+    let plane = Plane::of(grid, p);
     let (mut max, mut sum) = (0.0f64, 0.0);
-    scan(grid.width, p, z, |s, zs| {
-        if grid.is_valid(s) {
-            let e = zs - grid.heights[s];
-            max = max.max(e.abs());
-            sum += e * e;
-        }
+    let mut within = true;
+    for_each_span(p, |y, lo, hi| {
+        let row = y as usize * grid.width;
+        let (first, last) = (row + lo as usize, row + hi as usize);
+        let start = plane.at(lo, y);
+        let (row_max, row_sum) = if grid.all_valid(first, last) {
+            row_errors(&grid.heights[first..=last], start, plane.gx)
+        } else {
+            valid_row_errors(grid, first, last, start, plane.gx)
+        };
+        max = max.max(row_max);
+        sum += row_sum;
+        within = max <= max_limit && sum < sum_limit;
+        within
     });
+    within.then_some((max, sum))
+}
+
+/// [`row_errors`] over the valid samples of `first..=last` only.
+fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64) -> (f64, f64) {
+    let (mut max, mut sum) = (0.0f64, 0.0);
+    for s in (first..=last).filter(|&s| grid.is_valid(s)) {
+        let e = start + gx * (s - first) as f64 - grid.heights[s];
+        max = max.max(e.abs());
+        sum += e * e;
+    }
     (max, sum)
+}
+
+/// The error at sample `(x, y)` of the plane of triangle `p`, when the sample is on or
+/// inside it.
+pub fn error_at(grid: &Grid, p: [(i64, i64); 3], (x, y): (i64, i64)) -> Option<f64> {
+    let inside = (0..3).all(|k| {
+        let (a, b) = (p[k], p[(k + 1) % 3]);
+        (b.0 - a.0) * (y - a.1) - (b.1 - a.1) * (x - a.0) >= 0
+    });
+    let s = grid.sample((x, y));
+    (inside && grid.is_valid(s)).then(|| (Plane::of(grid, p).at(x, y) - grid.heights[s]).abs())
 }
 
 #[cfg(test)]
@@ -214,6 +485,59 @@ mod tests {
                 assert!((o.1 - r.1).abs() < 1e-9);
             }
         }
+    }
+
+    #[test]
+    fn spans_hold_exactly_the_samples_on_or_inside() {
+        // Every counter-clockwise triangle of a 7 × 7 lattice: slivers, shallow and
+        // steep sides, horizontal sides.
+        let points: Vec<(i64, i64)> = (0..49).map(|k| (k % 7, k / 7)).collect();
+        let mut checked = 0;
+        for (i, &a) in points.iter().enumerate().step_by(3) {
+            for &b in &points[i + 1..] {
+                for &c in points.iter().step_by(2) {
+                    let twice = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+                    if twice <= 0 {
+                        continue;
+                    }
+                    let mut ours = Vec::new();
+                    for_each_span([a, b, c], |y, lo, hi| {
+                        ours.extend((lo..=hi).map(|x| (x, y)));
+                        true
+                    });
+                    let inside = |&(x, y): &(i64, i64)| {
+                        [(a, b), (b, c), (c, a)]
+                            .iter()
+                            .all(|&(p, q)| (q.0 - p.0) * (y - p.1) - (q.1 - p.1) * (x - p.0) >= 0)
+                    };
+                    let reference: Vec<(i64, i64)> = (0..7)
+                        .flat_map(|y| (0..7).map(move |x| (x, y)))
+                        .filter(inside)
+                        .collect();
+                    ours.sort_by_key(|&(x, y)| (y, x));
+                    assert_eq!(ours, reference, "{a:?} {b:?} {c:?}");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 1000);
+    }
+
+    #[test]
+    fn bounded_reads_stop_over_their_limits() {
+        let (w, h) = (8, 8);
+        let mut heights = vec![0.0; w * h];
+        heights[3 * w + 2] = 2.0;
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let g = grid(w, h, &heights, &valid);
+        let p = [(0, 0), (7, 0), (0, 7)];
+        assert!(assess_within(&g, p, 1.0).is_none());
+        assert_eq!(assess_within(&g, p, 2.0).unwrap().error, 2.0);
+        assert!(errors_within(&g, p, 1.0, f64::INFINITY).is_none());
+        assert!(errors_within(&g, p, 3.0, 4.0).is_none());
+        assert_eq!(errors_within(&g, p, 3.0, 4.5), Some((2.0, 4.0)));
+        assert_eq!(error_at(&g, p, (2, 3)), Some(2.0));
+        assert_eq!(error_at(&g, p, (6, 6)), None);
     }
 
     #[test]

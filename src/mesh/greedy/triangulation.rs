@@ -35,17 +35,32 @@ pub fn orient(a: (i64, i64), b: (i64, i64), c: (i64, i64)) -> i64 {
 }
 
 /// Whether `d` lies strictly inside the circle through the counter-clockwise `a, b, c`
-/// (exact integer arithmetic).
+/// (exact integer arithmetic: `i64` while every offset from `d` is under 2^14, which
+/// keeps the determinant under 2^61, else `i128`).
 pub fn in_circle(a: (i64, i64), b: (i64, i64), c: (i64, i64), d: (i64, i64)) -> bool {
-    let row = |p: (i64, i64)| {
-        let (x, y) = (i128::from(p.0 - d.0), i128::from(p.1 - d.1));
-        (x, y, x * x + y * y)
-    };
-    let (ax, ay, a2) = row(a);
-    let (bx, by, b2) = row(b);
-    let (cx, cy, c2) = row(c);
-    let det = ax * (by * c2 - b2 * cy) - ay * (bx * c2 - b2 * cx) + a2 * (bx * cy - by * cx);
-    det > 0
+    let offset = |p: (i64, i64)| (p.0 - d.0, p.1 - d.1);
+    let (a, b, c) = (offset(a), offset(b), offset(c));
+    let small = |o: (i64, i64)| o.0.abs() < 1 << 14 && o.1.abs() < 1 << 14;
+    if small(a) && small(b) && small(c) {
+        let row = |(x, y): (i64, i64)| (x, y, x * x + y * y);
+        in_circle_determinant([row(a), row(b), row(c)]) > 0
+    } else {
+        let row = |(x, y): (i64, i64)| {
+            let (x, y) = (i128::from(x), i128::from(y));
+            (x, y, x * x + y * y)
+        };
+        in_circle_determinant([row(a), row(b), row(c)]) > 0
+    }
+}
+
+/// The in-circle determinant of rows `(x, y, x² + y²)` (offsets from the tested point).
+#[inline]
+fn in_circle_determinant<T>(rows: [(T, T, T); 3]) -> T
+where
+    T: Copy + std::ops::Mul<Output = T> + std::ops::Sub<Output = T> + std::ops::Add<Output = T>,
+{
+    let [(ax, ay, a2), (bx, by, b2), (cx, cy, c2)] = rows;
+    ax * (by * c2 - b2 * cy) - ay * (bx * c2 - b2 * cx) + a2 * (bx * cy - by * cx)
 }
 
 /// Half-edge triangulation of points of a grid.
@@ -88,7 +103,9 @@ impl Triangulation {
 
     /// The (column, row) of the three corners of triangle `t`.
     pub fn triangle_points(&self, t: u32) -> [(i64, i64); 3] {
-        self.triangle(t).map(|v| self.points[v as usize])
+        let [a, b, c] = self.triangle(t);
+        let p = &self.points;
+        [p[a as usize], p[b as usize], p[c as usize]]
     }
 
     /// Adds vertex `(x, y)` and returns its index.
@@ -183,6 +200,13 @@ impl Triangulation {
                 self.corners[prev(f) as usize],
             ]
         })
+    }
+
+    /// The (column, row) of [`Triangulation::quad`]'s corners.
+    pub fn quad_points(&self, e: u32) -> Option<[(i64, i64); 4]> {
+        let [a, b, c, d] = self.quad(e)?;
+        let p = &self.points;
+        Some([p[a as usize], p[b as usize], p[c as usize], p[d as usize]])
     }
 
     /// Replaces the diagonal `a–b` of the quadrilateral around `e` by `c–d` (see
@@ -302,6 +326,15 @@ pub(crate) mod tests {
         expected.sort();
         assert_eq!(diagonal, expected);
         assert!(!diagonal.contains(&a) && !diagonal.contains(&b));
+    }
+
+    #[test]
+    fn in_circle_agrees_for_near_and_far_points() {
+        let far = 1 << 20;
+        assert!(in_circle((0, 0), (far, 0), (far, far), (far / 2, far / 2)));
+        assert!(!in_circle((0, 0), (far, 0), (far, far), (0, far)));
+        assert!(!in_circle((0, 0), (far, 0), (far, far), (-1, far + 1)));
+        assert!(in_circle((0, 0), (9, 0), (9, 9), (1, 8)));
     }
 
     #[test]

@@ -1,0 +1,208 @@
+//! The data-dependent flips of the greedy mesher: a resolving flip during insertion
+//! towards a tolerance (a triangle over it swaps a side instead of taking a vertex when
+//! both triangles the flip makes are within it), and error-lowering flips after the
+//! last insertion. Both read as few samples as they can: a flip is dropped at the first
+//! row that rules it out, and an edge whose two triangles did not change since it was
+//! last weighed is not weighed again.
+
+use super::scan::{assess_within, error_at, errors, errors_within};
+use super::triangulation::{orient, NONE};
+use super::{GreedyMesher, GridMesh};
+
+/// Clock value of "never": edges not weighed yet, triangles not flipped yet.
+const NEVER: u32 = 0;
+
+/// What the error-lowering passes remember between edges.
+struct FlipState {
+    /// Each triangle's largest error and sum of squared errors (NaN: not read yet).
+    errors: Vec<(f64, f64)>,
+    /// Flips made so far: the clock.
+    clock: u32,
+    /// Clock of the flip that last rewrote each triangle.
+    changed: Vec<u32>,
+    /// Clock when each half-edge was last weighed.
+    weighed: Vec<u32>,
+}
+
+impl GreedyMesher<'_> {
+    /// Flips a side of triangle `t` (over `tolerance`) when both triangles the flip
+    /// makes are within `tolerance`: the tolerance met there without a new vertex.
+    pub(super) fn resolving_flip(&mut self, t: u32, tolerance: f64) -> bool {
+        if self.assessments[t as usize].touches_void {
+            return false;
+        }
+        for e in 3 * t..3 * t + 3 {
+            let Some([a, b, c, d]) = self.tin.quad_points(e) else {
+                continue;
+            };
+            if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
+                continue;
+            }
+            let (first, second) = ([c, a, d], [d, b, c]);
+            let f = self.tin.twins[e as usize];
+            // The worst samples of the two triangles are the likeliest to stay over.
+            let stays_over = |s: u32| {
+                let (x, y) = self.sample_point(s);
+                let error = error_at(&self.grid, first, (x, y))
+                    .or_else(|| error_at(&self.grid, second, (x, y)));
+                error.is_some_and(|error| error > tolerance)
+            };
+            let neighbour = &self.assessments[(f / 3) as usize];
+            if stays_over(self.assessments[t as usize].candidate)
+                || (neighbour.error > tolerance && stays_over(neighbour.candidate))
+            {
+                continue;
+            }
+            let Some(first) = assess_within(&self.grid, first, tolerance) else {
+                continue;
+            };
+            let Some(second) = assess_within(&self.grid, second, tolerance) else {
+                continue;
+            };
+            self.tin.flip(e);
+            self.store(e / 3, first);
+            self.store(f / 3, second);
+            return true;
+        }
+        false
+    }
+
+    /// (column, row) of sample `s`.
+    fn sample_point(&self, s: u32) -> (i64, i64) {
+        let s = s as usize;
+        ((s % self.grid.width) as i64, (s / self.grid.width) as i64)
+    }
+
+    /// Local optimisation after insertion: passes over every interior edge, flipping
+    /// it when the other diagonal of its (convex) quadrilateral has a smaller squared
+    /// error and a largest error no worse than `limit` (or than the current diagonal's
+    /// when `limit` is `None`); stops after a pass without flips or `passes` passes.
+    /// An edge whose two triangles are unchanged since it was last weighed is skipped
+    /// (it would be refused again). Returns the mesh and the flips made. The flipped
+    /// triangles are not assessed again (they cover no nodata, as the quadrilaterals
+    /// they come from), so this ends the insertion.
+    pub fn optimise_flips(mut self, limit: Option<f64>, passes: usize) -> (GridMesh, usize) {
+        let triangles = self.triangle_count();
+        let mut state = FlipState {
+            errors: vec![(f64::NAN, 0.0); triangles],
+            clock: NEVER + 1,
+            changed: vec![NEVER; triangles],
+            weighed: vec![NEVER; 3 * triangles],
+        };
+        let mut flips = 0;
+        for _ in 0..passes {
+            let before = flips;
+            for e in 0..self.tin.corners.len() as u32 {
+                if self.try_improving_flip(e, limit, &mut state) {
+                    flips += 1;
+                }
+            }
+            if flips == before {
+                break;
+            }
+        }
+        (self.mesh(), flips)
+    }
+
+    /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would.
+    fn try_improving_flip(&mut self, e: u32, limit: Option<f64>, state: &mut FlipState) -> bool {
+        let f = self.tin.twins[e as usize];
+        if f == NONE || f < e {
+            return false;
+        }
+        let (t1, t2) = ((e / 3) as usize, (f / 3) as usize);
+        let last = state.weighed[e as usize];
+        if last != NEVER && state.changed[t1] <= last && state.changed[t2] <= last {
+            return false;
+        }
+        state.weighed[e as usize] = state.clock;
+        if self.assessments[t1].touches_void || self.assessments[t2].touches_void {
+            return false;
+        }
+        let [a, b, c, d] = self.tin.quad_points(e).expect("interior");
+        if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
+            return false;
+        }
+        if !holds_a_sample_inside([a, d, b, c]) {
+            // Every sample of the quadrilateral is on its outline: either diagonal
+            // interpolates them the same.
+            return false;
+        }
+        for (t, p) in [(t1, [a, b, c]), (t2, [b, a, d])] {
+            if state.errors[t].0.is_nan() {
+                state.errors[t] = errors(&self.grid, p);
+            }
+        }
+        let (now1, now2) = (state.errors[t1], state.errors[t2]);
+        let allowed = limit.unwrap_or(now1.0.max(now2.0));
+        let sum_limit = (now1.1 + now2.1) * (1.0 - 1e-12);
+        let Some(new1) = errors_within(&self.grid, [c, a, d], allowed, sum_limit) else {
+            return false;
+        };
+        let Some(new2) = errors_within(&self.grid, [d, b, c], allowed, sum_limit - new1.1) else {
+            return false;
+        };
+        self.tin.flip(e);
+        state.errors[t1] = new1;
+        state.errors[t2] = new2;
+        state.clock += 1;
+        state.changed[t1] = state.clock;
+        state.changed[t2] = state.clock;
+        true
+    }
+}
+
+/// Whether a grid sample lies strictly inside the convex counter-clockwise
+/// quadrilateral `q` (Pick's theorem: twice the area minus the samples on the outline,
+/// plus 2, is twice the count of samples inside).
+fn holds_a_sample_inside(q: [(i64, i64); 4]) -> bool {
+    let twice_area = orient(q[0], q[1], q[2]) + orient(q[0], q[2], q[3]);
+    let on_outline: i64 = (0..4)
+        .map(|k| {
+            let (p, r) = (q[k], q[(k + 1) % 4]);
+            gcd((p.0 - r.0).unsigned_abs(), (p.1 - r.1).unsigned_abs()) as i64
+        })
+        .sum();
+    twice_area - on_outline + 2 > 0
+}
+
+/// Greatest common divisor (binary: no division).
+fn gcd(mut a: u64, mut b: u64) -> u64 {
+    if a == 0 || b == 0 {
+        return a | b;
+    }
+    let shift = (a | b).trailing_zeros();
+    a >>= a.trailing_zeros();
+    while b != 0 {
+        b >>= b.trailing_zeros();
+        if a > b {
+            std::mem::swap(&mut a, &mut b);
+        }
+        b -= a;
+    }
+    a << shift
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gcd_of_small_numbers() {
+        assert_eq!(gcd(12, 18), 6);
+        assert_eq!(gcd(0, 7), 7);
+        assert_eq!(gcd(7, 0), 7);
+        assert_eq!(gcd(1, 1), 1);
+        assert_eq!(gcd(64, 48), 16);
+    }
+
+    #[test]
+    fn samples_inside_a_quadrilateral_are_counted_by_picks_theorem() {
+        // A unit square holds none; a 2 × 2 square holds its centre.
+        assert!(!holds_a_sample_inside([(0, 0), (1, 0), (1, 1), (0, 1)]));
+        assert!(holds_a_sample_inside([(0, 0), (2, 0), (2, 2), (0, 2)]));
+        // A long thin strip along a row holds none, a kite around (1, 1) holds it.
+        assert!(!holds_a_sample_inside([(0, 0), (9, 0), (9, 1), (0, 1)]));
+        assert!(holds_a_sample_inside([(1, 0), (2, 1), (1, 2), (0, 1)]));
+    }
+}

@@ -1,0 +1,147 @@
+//! The triangles waiting to be split, worst first: a binary max-heap that knows where
+//! each triangle sits in it, so a triangle assessed again moves in place (or leaves)
+//! instead of leaving a stale entry behind.
+
+/// Not in the heap.
+const ABSENT: u32 = u32::MAX;
+
+/// Triangles keyed by error; ties go to the higher triangle index, so the worst is
+/// the same whatever order the keys were set in.
+#[derive(Debug, Clone, Default)]
+pub struct WorstFirst {
+    /// `(error bits, triangle)`: errors are never negative, so their bits order them.
+    heap: Vec<(u64, u32)>,
+    /// Each triangle's index in `heap`, or [`ABSENT`].
+    position: Vec<u32>,
+}
+
+impl WorstFirst {
+    /// The worst triangle, if any is waiting.
+    pub fn worst(&self) -> Option<u32> {
+        self.heap.first().map(|&(_, t)| t)
+    }
+
+    /// Queues triangle `t` with `error` (≥ 0), or moves it there if already queued.
+    pub fn set(&mut self, t: u32, error: f64) {
+        if self.position.len() <= t as usize {
+            self.position.resize(t as usize + 1, ABSENT);
+        }
+        let key = (error.to_bits(), t);
+        match self.position[t as usize] {
+            ABSENT => {
+                self.heap.push(key);
+                self.place(self.heap.len() - 1);
+                self.sift_up(self.heap.len() - 1);
+            }
+            at => {
+                let at = at as usize;
+                let old = std::mem::replace(&mut self.heap[at], key);
+                if key > old {
+                    self.sift_up(at);
+                } else {
+                    self.sift_down(at);
+                }
+            }
+        }
+    }
+
+    /// Takes triangle `t` out of the queue (nothing when it is not queued).
+    pub fn remove(&mut self, t: u32) {
+        let Some(&at) = self.position.get(t as usize) else {
+            return;
+        };
+        if at == ABSENT {
+            return;
+        }
+        let (at, last) = (at as usize, self.heap.len() - 1);
+        self.position[t as usize] = ABSENT;
+        self.heap.swap(at, last);
+        let removed = self.heap.pop().expect("not empty");
+        if at < self.heap.len() {
+            self.place(at);
+            if self.heap[at] > removed {
+                self.sift_up(at);
+            } else {
+                self.sift_down(at);
+            }
+        }
+    }
+
+    /// Records where the entry at `at` now sits.
+    #[inline]
+    fn place(&mut self, at: usize) {
+        self.position[self.heap[at].1 as usize] = at as u32;
+    }
+
+    fn sift_up(&mut self, mut at: usize) {
+        while at > 0 {
+            let parent = (at - 1) / 2;
+            if self.heap[parent] >= self.heap[at] {
+                break;
+            }
+            self.heap.swap(parent, at);
+            self.place(at);
+            at = parent;
+        }
+        self.place(at);
+    }
+
+    fn sift_down(&mut self, mut at: usize) {
+        let n = self.heap.len();
+        loop {
+            let (left, right) = (2 * at + 1, 2 * at + 2);
+            let mut largest = at;
+            if left < n && self.heap[left] > self.heap[largest] {
+                largest = left;
+            }
+            if right < n && self.heap[right] > self.heap[largest] {
+                largest = right;
+            }
+            if largest == at {
+                break;
+            }
+            self.heap.swap(largest, at);
+            self.place(at);
+            at = largest;
+        }
+        self.place(at);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_worst_comes_first_through_updates_and_removals() {
+        let mut queue = WorstFirst::default();
+        let mut errors = [3.0, 7.5, 1.0, 7.5, 0.25, 9.0, 4.0];
+        for (t, &e) in errors.iter().enumerate() {
+            queue.set(t as u32, e);
+        }
+        queue.set(5, 0.5);
+        errors[5] = 0.5;
+        queue.remove(3);
+        queue.remove(3);
+        queue.set(2, 8.0);
+        errors[2] = 8.0;
+        let mut order = Vec::new();
+        while let Some(t) = queue.worst() {
+            order.push(t);
+            queue.remove(t);
+        }
+        assert_eq!(order, [2, 1, 6, 0, 5, 4]);
+        assert!(order
+            .windows(2)
+            .all(|w| errors[w[0] as usize] >= errors[w[1] as usize]));
+    }
+
+    #[test]
+    fn ties_go_to_the_higher_triangle() {
+        let mut queue = WorstFirst::default();
+        for t in [4, 9, 2] {
+            queue.set(t, 1.0);
+        }
+        assert_eq!(queue.worst(), Some(9));
+    }
+}
