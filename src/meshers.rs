@@ -57,6 +57,20 @@ impl Method {
         Method::Martini,
     ];
 
+    /// Heap a build may take per sample of the raster, at most: the peaks of near-full
+    /// meshes (the bundled jacksboro sample at E = 0.5, `compare-meshers --json`:
+    /// zerotree 52, greedy 198, delaunay 144, qem 147, varres 511, delatin 440 bytes a
+    /// sample) with a quarter more.
+    pub fn peak_bytes_per_sample(self) -> u64 {
+        match self {
+            Method::Zerotree => 65,
+            Method::Greedy | Method::Martini => 250,
+            Method::Delaunay | Method::Qem => 185,
+            Method::Varres => 640,
+            Method::Delatin => 550,
+        }
+    }
+
     /// Lower-case name.
     pub fn name(self) -> &'static str {
         match self {
@@ -323,16 +337,25 @@ fn thread_cpu_seconds() -> Option<f64> {
 }
 
 /// Every method in `methods` at every budget in `budgets` (methods that cannot mesh the
-/// grid are left out, with the reason).
+/// grid, or may need more than `max_memory` bytes for it, are left out, with the reason).
 pub fn compare(
     raster: &Raster,
     methods: &[Method],
     budgets: &[Budget],
+    max_memory: u64,
 ) -> (Vec<MeshRow>, Vec<(Method, String)>) {
     let surface = Surface::of(raster);
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
     for &method in methods {
+        let needed = method.peak_bytes_per_sample() * raster.len() as u64;
+        if needed > max_memory {
+            skipped.push((
+                method,
+                format!("may need {needed} bytes, more than the memory limit {max_memory}"),
+            ));
+            continue;
+        }
         for &n in budgets {
             match measure(method, raster, &surface, n) {
                 Ok(row) => rows.push(row),

@@ -214,7 +214,53 @@ fn bad_arguments_and_inputs_are_one_line_errors() {
         ],
         2,
     );
+    // --bpp codes a stream: only the zerotree mesher meshes one.
+    fails(
+        &[
+            "mesh",
+            input,
+            "-o",
+            s(&out),
+            "--method",
+            "greedy",
+            "--bpp",
+            "1",
+        ],
+        2,
+    );
+    // varres takes ~511 bytes a sample of this 138632-sample DEM at its finest.
+    fails(
+        &[
+            "mesh",
+            input,
+            "-o",
+            s(&out),
+            "--method",
+            "varres",
+            "--max-memory",
+            "40000000",
+        ],
+        3,
+    );
     assert!(!out.exists());
+    let report = json(&[
+        "compare-meshers",
+        input,
+        "--methods",
+        "greedy,varres",
+        "--triangles",
+        "1000",
+        "--max-memory",
+        "40000000",
+        "--json",
+    ]);
+    let rows = report["rows"].as_array().unwrap();
+    assert!(rows.iter().all(|r| r["method"] == "greedy"), "{rows:?}");
+    assert_eq!(report["skipped"][0]["method"], "varres");
+    assert!(report["skipped"][0]["reason"]
+        .as_str()
+        .unwrap()
+        .contains("memory limit"));
 }
 
 /// Delatin (pydelatin, `../shared/peers/results/dev_mesh.csv`) on fuji's crop257

@@ -460,6 +460,20 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         MethodArg::Greedy
     });
     if method != MethodArg::Zerotree {
+        if args.bpp.is_some() {
+            return Err(CliError::Usage(
+                "--bpp applies to --method zerotree only (it meshes a decoded stream)".into(),
+            ));
+        }
+        let needed = method.method().peak_bytes_per_sample() * raster.len() as u64;
+        let max_memory = args.input_args.max_memory();
+        if needed > max_memory {
+            return Err(CliError::OverLimit(format!(
+                "meshing {} samples with {} may need {needed} bytes, more than --max-memory {max_memory}; raise it if the machine has it",
+                raster.len(),
+                method.method().name()
+            )));
+        }
         let budget = args.mesh.direct_budget(raster.len())?;
         let placement = args
             .mesh

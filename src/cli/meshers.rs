@@ -31,7 +31,7 @@ pub enum MethodArg {
 }
 
 impl MethodArg {
-    fn method(self) -> Method {
+    pub(super) fn method(self) -> Method {
         match self {
             MethodArg::Zerotree => Method::Zerotree,
             MethodArg::Greedy => Method::Greedy,
@@ -244,8 +244,9 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     if args.varres_metrics {
         return super::varres::varres_metrics(&args.input, &raster, args.json);
     }
-    let (rows, skipped) =
-        with_progress("meshing", || meshers::compare(&raster, &methods, &budgets));
+    let (rows, skipped) = with_progress("meshing", || {
+        meshers::compare(&raster, &methods, &budgets, args.input_args.max_memory())
+    });
     if let Some(path) = &args.plot {
         let name = args.input.file_name().unwrap_or_default().to_string_lossy();
         let title = format!("{name} ({}x{})", raster.width, raster.height);
