@@ -109,7 +109,13 @@ fn mesh_defaults_to_greedy_unless_a_stream_is_asked_for() {
         let report = json(&args);
         // The zerotree report nests its mesh; the direct one names its method.
         match report["method"].as_str() {
-            Some(method) => method.to_string(),
+            Some(method) => {
+                // Where the vertices are, as the zerotree's report says it.
+                assert_eq!(report["xy_units"], "local_enu", "{report}");
+                assert_eq!(report["frame"]["crs"], "EPSG:4326", "{report}");
+                assert_eq!(report["format"], "ply", "{report}");
+                method.to_string()
+            }
             None => {
                 assert!(report["mesh"].is_object(), "{report}");
                 "zerotree".to_string()

@@ -57,6 +57,12 @@ struct DirectMeshReport<'a> {
     error: MeshError,
     mesh_seconds: f64,
     mesh_peak_heap_bytes: usize,
+    /// The mesh file's format and bytes.
+    format: &'static str,
+    file_bytes: u64,
+    /// Units of x and y, and the frame the vertices are in (as the zerotree's report).
+    xy_units: &'static str,
+    frame: serde_json::Value,
 }
 
 /// Meshes `raster` with `method` straight from its heights (no stream) and writes it.
@@ -91,6 +97,10 @@ pub fn mesh_direct(
         error: mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid),
         mesh_seconds,
         mesh_peak_heap_bytes: peak,
+        format: format.name(),
+        file_bytes: std::fs::metadata(output).map_or(0, |m| m.len()),
+        xy_units: placement.frame_name(),
+        frame: placement.frame_record(),
     };
     if json {
         println!(
