@@ -83,10 +83,8 @@ def _checked_array(array: Any):
 
 
 def _encode_block(block: np.ndarray, raster_shape: Tuple[int, int], nodata, quality: dict):
-    """One tile's ``(stream, summary)``, in a task: its samples (a masked block filled
-    with ``nodata``) coded as the single-machine encoder codes that tile."""
-    if np.ma.isMaskedArray(block):
-        block = block.filled(nodata)
+    """One tile's ``(stream, summary)``, in a task: its samples coded as the
+    single-machine encoder codes that tile."""
     height, width = raster_shape
     return _wavemesh.encode_tile(
         wavemesh._native_2d(block),
@@ -127,8 +125,11 @@ def to_ezw(
     dask, _ = _modules()
     array = _checked_array(array)
     tile = _tile_size(tile)
-    if nodata is None and np.ma.isMaskedArray(array._meta):
-        nodata = wavemesh._void_value(array.dtype)
+    if np.ma.isMaskedArray(array._meta):
+        if nodata is None:
+            nodata = wavemesh._void_value(array.dtype)
+        plain = np.empty((0, 0), array.dtype)
+        array = array.map_blocks(np.ma.filled, nodata, dtype=array.dtype, meta=plain)
     nodata = None if nodata is None else float(nodata)
     geotransform, epsg, wkt = wavemesh._georef_args(transform, crs)
     quality = dict(bpp=bpp, max_error=max_error, precision=precision, wavelet=wavelet)
@@ -200,7 +201,12 @@ class _TileReader:
             height=height,
             nodata=self.nodata,
         )
-        return wavemesh._masked(samples, valid, self.nodata)
+        tile = wavemesh._masked(samples, valid, self.nodata)
+        if not wavemesh._fill_value_fits(self.nodata, tile.dtype):
+            # One the type holds: dask.distributed cannot ship a masked array whose fill
+            # value is numpy's default for small integers (999999).
+            tile.fill_value = wavemesh._void_value(tile.dtype)
+        return tile
 
 
 def open_ezw(
@@ -215,7 +221,11 @@ def open_ezw(
     shared among the tiles as :func:`wavemesh.decode` shares it, so
     ``open_ezw(path, bpp=b).compute()`` equals ``wavemesh.decode(path, bpp=b)``. Chunks
     are ``numpy.ma`` arrays as :func:`wavemesh.decode` returns them: masked at voids,
-    the nodata value (NaN for float voids without one) underneath.
+    the nodata value (NaN for float voids without one) underneath; ``fill_value`` is the
+    nodata value, else the value :func:`wavemesh.encode` fills a masked array's voids
+    with (NaN, or the type's minimum if signed, maximum if unsigned). A chunk without
+    voids that went through ``dask.distributed`` may come back with the mask ``nomask``
+    (``np.ma.getmaskarray`` gives the full one).
 
     A single-stream file raises ``ValueError`` (decode it with :func:`wavemesh.decode`);
     a damaged header or index raises :class:`wavemesh.CodecError` here, a damaged or
