@@ -50,11 +50,18 @@ fn summary_values(summary: TileSummary) -> SummaryValues {
     )
 }
 
-/// The summary `values` hold (see [`summary_values`]).
-fn summary_of(values: SummaryValues) -> PyResult<TileSummary> {
+/// The summary `values` hold (see [`summary_values`]) of a tile of `len` bytes.
+fn summary_of(values: SummaryValues, tile_len: usize) -> PyResult<TileSummary> {
     let (len, head_len, initial_error, passes, mode, max_error, valid_range, wavelet, levels) =
         values;
     let bad = |what: &str| PyValueError::new_err(format!("not a tile summary: {what}"));
+    let mut ends = std::iter::once(head_len).chain(passes.iter().map(|p| p.0));
+    if len != tile_len as u64 || !ends.all(|end| end >= head_len && end <= len) {
+        return Err(bad("lengths that do not fit its tile"));
+    }
+    if !passes.windows(2).all(|pair| pair[0].0 <= pair[1].0) {
+        return Err(bad("passes out of order"));
+    }
     let mode = [Mode::Lossless, Mode::Lossy, Mode::MaxError, Mode::Precision]
         .into_iter()
         .find(|m| m.name() == mode)
@@ -165,11 +172,16 @@ pub fn write_tiled(
     epsg: Option<i64>,
     crs_wkt: Option<String>,
 ) -> PyResult<u64> {
+    if [width, height, tile_width, tile_height].contains(&0) {
+        return Err(PyValueError::new_err(format!(
+            "a {width} x {height} raster in {tile_width} x {tile_height} tiles"
+        )));
+    }
     let grid = TileGrid {
         width,
         height,
-        tile_width: tile_width.max(1),
-        tile_height: tile_height.max(1),
+        tile_width,
+        tile_height,
     };
     if tiles.len() != grid.count() {
         return Err(PyValueError::new_err(format!(
@@ -182,8 +194,8 @@ pub fn write_tiled(
         .into_iter()
         .map(|(bytes, values)| {
             Ok(EncodedTile {
+                summary: summary_of(values, bytes.as_bytes().len())?,
                 bytes: bytes.as_bytes().to_vec(),
-                summary: summary_of(values)?,
             })
         })
         .collect::<PyResult<Vec<EncodedTile>>>()?;

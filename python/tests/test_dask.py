@@ -141,6 +141,29 @@ def test_to_ezw_failure_leaves_the_old_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.ezw"]
 
 
+def test_native_tile_functions_assemble_the_encode_and_refuse_what_does_not_fit(tmp_path):
+    from wavemesh import _wavemesh
+
+    dem = terrain(np.int16, (100, 100))
+    tiles = [
+        _wavemesh.encode_tile(dem[y : y + 50, x : x + 50], raster_width=100, raster_height=100)
+        for y in (0, 50)
+        for x in (0, 50)
+    ]
+    path = str(tmp_path / "native.ezw")
+    grid = dict(width=100, height=100, tile_width=50, tile_height=50)
+    assert _wavemesh.write_tiled(path, tiles, **grid) == len(wavemesh.encode(dem, tile=50))
+    assert open(path, "rb").read() == wavemesh.encode(dem, tile=50)
+    with pytest.raises(ValueError, match="has 4 tiles, got 3"):
+        _wavemesh.write_tiled(path, tiles[1:], **grid)
+    with pytest.raises(ValueError, match="0 x 50 tiles"):
+        _wavemesh.write_tiled(path, tiles, **dict(grid, tile_width=0))
+    stream, summary = tiles[0]
+    for bad in [(summary[0] + 1,) + summary[1:], summary[:4] + ("sharp",) + summary[5:]]:
+        with pytest.raises(ValueError, match="not a tile summary"):
+            _wavemesh.write_tiled(path, [(stream, bad)] + tiles[1:], **grid)
+
+
 def test_open_ezw_refuses_other_files(tmp_path):
     single = tmp_path / "single.ezw"
     single.write_bytes(wavemesh.encode(terrain(np.int16, (40, 40))))

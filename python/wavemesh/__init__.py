@@ -32,6 +32,8 @@ Functions:
   and :func:`table` (the seed paper's Tables 1 and 2 as dicts or a pandas DataFrame).
 - :mod:`wavemesh.rio` (rasterio-style profiles) and :mod:`wavemesh.xarray`
   (rioxarray DataArrays).
+- :mod:`wavemesh.dask`: ``to_ezw`` encodes a Dask array a tile per task into the bytes
+  :func:`encode` gives; ``open_ezw`` decodes a tiled file lazily, a tile per task.
 
 Georeferencing: ``transform`` is a rasterio/affine ``Affine`` or a GDAL 6-tuple; ``crs``
 an EPSG code (``32632`` or ``"EPSG:32632"``), WKT, or an object with ``to_epsg()`` /

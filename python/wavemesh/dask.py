@@ -25,13 +25,16 @@ True
 from __future__ import annotations
 
 import os
-from typing import Any, Optional, Tuple
+from typing import TYPE_CHECKING, Any, Optional, Tuple
 
 import numpy as np
 
 import wavemesh
 
 from . import _wavemesh
+
+if TYPE_CHECKING:
+    import dask.array
 
 __all__ = ["to_ezw", "open_ezw"]
 
@@ -95,6 +98,28 @@ def _encode_block(block: np.ndarray, raster_shape: Tuple[int, int], nodata, qual
     )
 
 
+def _filled(array, nodata: Optional[float]):
+    """``(array, nodata)``: a masked Dask array's voids filled with ``nodata`` (else the
+    value :func:`wavemesh.encode` fills them with), task by task; ``nodata`` a float."""
+    if np.ma.isMaskedArray(array._meta):
+        if nodata is None:
+            nodata = wavemesh._void_value(array.dtype)
+        plain = np.empty((0, 0), array.dtype)
+        array = array.map_blocks(np.ma.filled, nodata, dtype=array.dtype, meta=plain)
+    return array, None if nodata is None else float(nodata)
+
+
+def _coded_tiles(array, grid: Tuple[int, int], nodata, quality: dict) -> list:
+    """Every tile's ``(stream, summary)`` in grid order, each coded in its own task from
+    ``array`` rechunked to the grid of ``grid`` (tile width, height) tiles."""
+    dask, _ = _modules()
+    (tile_width, tile_height), (height, width) = grid, array.shape
+    blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
+    encode = dask.delayed(_encode_block)
+    tasks = [encode(b, (height, width), nodata, quality) for b in blocks.to_delayed().ravel()]
+    return list(dask.compute(*tasks))
+
+
 def to_ezw(
     array: Any,
     path: "wavemesh.PathLike",
@@ -122,15 +147,8 @@ def to_ezw(
     type's extreme, as :func:`wavemesh.encode` does). An array no larger than ``tile``
     a side is one stream, coded in one task.
     """
-    dask, _ = _modules()
-    array = _checked_array(array)
+    array, nodata = _filled(_checked_array(array), nodata)
     tile = _tile_size(tile)
-    if np.ma.isMaskedArray(array._meta):
-        if nodata is None:
-            nodata = wavemesh._void_value(array.dtype)
-        plain = np.empty((0, 0), array.dtype)
-        array = array.map_blocks(np.ma.filled, nodata, dtype=array.dtype, meta=plain)
-    nodata = None if nodata is None else float(nodata)
     geotransform, epsg, wkt = wavemesh._georef_args(transform, crs)
     quality = dict(bpp=bpp, max_error=max_error, precision=precision, wavelet=wavelet)
     height, width = array.shape
@@ -142,12 +160,9 @@ def to_ezw(
         wavemesh._write_atomic(path, data)
         return len(data)
     tile_width, tile_height = grid
-    blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
-    encode = dask.delayed(_encode_block, pure=True)
-    tasks = [encode(b, (height, width), nodata, quality) for b in blocks.to_delayed().ravel()]
     return _wavemesh.write_tiled(
         os.fspath(path),
-        list(dask.compute(*tasks)),
+        _coded_tiles(array, grid, nodata, quality),
         width=width,
         height=height,
         tile_width=tile_width,
@@ -187,10 +202,9 @@ class _TileReader:
         rows, columns = key
         tile_height, tile_width = self.tile_shape
         row, column = rows.start // tile_height, columns.start // tile_width
-        height = min(tile_height, self.shape[0] - rows.start)
-        width = min(tile_width, self.shape[1] - columns.start)
-        whole = (row * tile_height, rows.start + height, column * tile_width, columns.start + width)
-        if (rows.start, rows.stop, columns.start, columns.stop) != whole:
+        height, width = self.chunks[0][row], self.chunks[1][column]
+        y, x = row * tile_height, column * tile_width
+        if (rows.start, rows.stop, columns.start, columns.stop) != (y, y + height, x, x + width):
             raise IndexError(f"reads whole tiles only, not {key!r}")
         k = row * len(self.chunks[1]) + column
         samples, valid = _wavemesh.decode_tile(
@@ -211,7 +225,7 @@ class _TileReader:
 
 def open_ezw(
     path: "wavemesh.PathLike", *, bpp: Optional[float] = None, nbytes: Optional[int] = None
-):
+) -> "dask.array.Array":
     """A tiled ``.ezw`` file as a lazy ``dask.array.Array``, one chunk (and one task) per
     tile.
 
