@@ -10,8 +10,9 @@ use wavemesh::dem::{read_dem, ReadOptions, WorkMemory};
 use wavemesh_codec::container::{physical_offset, unframe};
 use wavemesh_codec::mask::decode_mask;
 use wavemesh_codec::{
-    decode_window, encode as encode_raster, tiles::{TiledLayout, DEFAULT_TILE}, DecodeOptions, Decoded, EncodeOptions, Window,
-    Header, Limits, Quality, Raster, Wavelet,
+    decode_window, encode as encode_raster,
+    tiles::{TiledLayout, DEFAULT_TILE},
+    DecodeOptions, Decoded, EncodeOptions, Header, Limits, Quality, Raster, Wavelet, Window,
 };
 
 use crate::arrays::{arrays_of, raster_of};

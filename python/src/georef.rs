@@ -39,13 +39,28 @@ fn crs_keys(epsg: Option<i64>, wkt: Option<String>) -> PyResult<(Vec<u16>, Optio
 }
 
 /// Places `raster` with a GDAL `geotransform` and a CRS given as an `epsg` code and/or
-/// `wkt` text (see [`crs_keys`]).
+/// `wkt` text (see [`georef_of`]).
 pub fn set_georef(
     raster: &mut Raster,
     geotransform: Option<[f64; 6]>,
     epsg: Option<i64>,
     wkt: Option<String>,
 ) -> PyResult<()> {
+    let (georef, crs_wkt) = georef_of(geotransform, epsg, wkt)?;
+    if georef.is_some() {
+        raster.metadata.crs_wkt = crs_wkt;
+        raster.georef = georef;
+    }
+    Ok(())
+}
+
+/// The georeferencing of a GDAL `geotransform` and a CRS given as an `epsg` code and/or
+/// `wkt` text (see [`crs_keys`]), and the WKT to keep in the metadata beside it.
+pub fn georef_of(
+    geotransform: Option<[f64; 6]>,
+    epsg: Option<i64>,
+    wkt: Option<String>,
+) -> PyResult<(Option<Georef>, Option<String>)> {
     let has_crs = epsg.is_some() || wkt.is_some();
     let (keys, crs_wkt) = crs_keys(epsg, wkt)?;
     let Some(geotransform) = geotransform else {
@@ -54,20 +69,19 @@ pub fn set_georef(
                 "a CRS without a transform places nothing: give transform= too",
             ));
         }
-        return Ok(());
+        return Ok((None, None));
     };
     if geotransform.iter().any(|v| !v.is_finite()) {
         return Err(PyValueError::new_err(format!(
             "transform must hold finite numbers, got {geotransform:?}"
         )));
     }
-    raster.metadata.crs_wkt = crs_wkt;
-    raster.georef = Some(Georef {
+    let georef = Georef {
         geotransform,
         geo_key_directory: keys,
         ..Georef::default()
-    });
-    Ok(())
+    };
+    Ok((Some(georef), crs_wkt))
 }
 
 /// Puts the georeferencing and GIS metadata of a stream into `out`: `geotransform` (GDAL

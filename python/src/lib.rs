@@ -7,6 +7,8 @@ mod coding;
 mod errors;
 mod georef;
 mod meshing;
+mod tile_decode;
+mod tile_encode;
 
 use pyo3::prelude::*;
 
@@ -21,5 +23,10 @@ fn _wavemesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(coding::write_file, m)?)?;
     m.add_function(wrap_pyfunction!(meshing::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(meshing::table, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::tile_grid, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::encode_tile, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::write_tiled, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_decode::tiled_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_decode::decode_tile, m)?)?;
     Ok(())
 }

@@ -32,6 +32,8 @@ Functions:
   and :func:`table` (the seed paper's Tables 1 and 2 as dicts or a pandas DataFrame).
 - :mod:`wavemesh.rio` (rasterio-style profiles) and :mod:`wavemesh.xarray`
   (rioxarray DataArrays).
+- :mod:`wavemesh.dask`: ``to_ezw`` encodes a Dask array a tile per task into the bytes
+  :func:`encode` gives; ``open_ezw`` decodes a tiled file lazily, a tile per task.
 
 Georeferencing: ``transform`` is a rasterio/affine ``Affine`` or a GDAL 6-tuple; ``crs``
 an EPSG code (``32632`` or ``"EPSG:32632"``), WKT, or an object with ``to_epsg()`` /
@@ -152,16 +154,44 @@ def _native_2d(array: Any) -> np.ndarray:
     return array
 
 
+def _void_value(dtype: np.dtype) -> float:
+    """The nodata value a masked array of ``dtype`` gets when none is given: NaN for
+    floats, the type's minimum (signed) or maximum (unsigned)."""
+    if np.issubdtype(dtype, np.floating):
+        return float("nan")
+    limits = np.iinfo(dtype)
+    return limits.min if limits.min < 0 else limits.max
+
+
 def _fill_masked(array: "np.ma.MaskedArray", nodata: Optional[float]):
     """A masked array as plain samples with its voids set to a nodata value: ``nodata``,
-    else NaN for floats and the type's minimum (signed) or maximum (unsigned)."""
+    else :func:`_void_value`."""
     if nodata is None:
-        if np.issubdtype(array.dtype, np.floating):
-            nodata = float("nan")
-        else:
-            limits = np.iinfo(array.dtype)
-            nodata = limits.min if limits.min < 0 else limits.max
+        nodata = _void_value(array.dtype)
     return array.filled(nodata), nodata
+
+
+def _georef_args(
+    transform: Any, crs: Any
+) -> Tuple[Optional[Tuple[float, ...]], Optional[int], Optional[str]]:
+    """``(geotransform, epsg, wkt)`` of ``encode``'s ``transform`` and ``crs`` (the
+    identity transform without a CRS stores no georeferencing)."""
+    epsg, wkt = _crs(crs)
+    geotransform = _geotransform(transform)
+    if geotransform == _NOT_GEOREFERENCED and epsg is None and wkt is None:
+        geotransform = None
+    return geotransform, epsg, wkt
+
+
+def _masked(
+    samples: np.ndarray, valid: np.ndarray, nodata: Optional[float]
+) -> "np.ma.MaskedArray":
+    """A decode's samples masked where not ``valid``, ``fill_value`` the nodata value
+    when the samples' type holds it."""
+    out = np.ma.MaskedArray(samples, mask=~valid)
+    if _fill_value_fits(nodata, samples.dtype):
+        out.fill_value = nodata
+    return out
 
 
 def encode(
@@ -201,10 +231,7 @@ def encode(
     """
     if np.ma.isMaskedArray(array):
         array, nodata = _fill_masked(array, nodata)
-    epsg, wkt = _crs(crs)
-    geotransform = _geotransform(transform)
-    if geotransform == _NOT_GEOREFERENCED and epsg is None and wkt is None:
-        geotransform = None
+    geotransform, epsg, wkt = _georef_args(transform, crs)
     return _wavemesh.encode(
         _native_2d(array),
         nodata=None if nodata is None else float(nodata),
@@ -309,10 +336,7 @@ def decode(
             f"{os.fspath(data_or_path)}: "
         )
         warnings.warn(f"{where}{damage}", RuntimeWarning, stacklevel=2)
-    out = np.ma.MaskedArray(samples, mask=~valid)
-    if _fill_value_fits(nodata, samples.dtype):
-        out.fill_value = nodata
-    return out
+    return _masked(samples, valid, nodata)
 
 
 def info(

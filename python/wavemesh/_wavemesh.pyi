@@ -86,3 +86,65 @@ def table(
     """The rows as the command line's ``table --format json`` (a JSON array)."""
 
 def write_file(path: str, data: bytes) -> None: ...
+
+# wavemesh.dask: a tiled file encoded and decoded a tile at a time.
+
+#: A tile's summary as ``encode_tile`` returns it (opaque: ``write_tiled`` takes it back).
+TileSummary = Tuple[
+    int, int, float, List[Tuple[int, float]], str, float, Optional[Tuple[float, float]], int, int
+]
+
+def tile_grid(
+    width: int,
+    height: int,
+    tile: int,
+    *,
+    bpp: Optional[float] = ...,
+    max_error: Optional[float] = ...,
+    precision: Optional[float] = ...,
+    wavelet: Optional[str] = ...,
+) -> Optional[Tuple[int, int]]:
+    """``(tile_width, tile_height)`` of the raster's balanced grid, ``None`` for one stream."""
+
+def encode_tile(
+    array: np.ndarray,
+    *,
+    raster_width: int,
+    raster_height: int,
+    nodata: Optional[float] = ...,
+    bpp: Optional[float] = ...,
+    max_error: Optional[float] = ...,
+    precision: Optional[float] = ...,
+    wavelet: Optional[str] = ...,
+) -> Tuple[bytes, TileSummary]:
+    """One tile's stream and summary, as the single-machine encoder codes that tile."""
+
+def write_tiled(
+    path: str,
+    tiles: List[Tuple[bytes, TileSummary]],
+    *,
+    width: int,
+    height: int,
+    tile_width: int,
+    tile_height: int,
+    nodata: Optional[float] = ...,
+    bpp: Optional[float] = ...,
+    geotransform: Optional[Sequence[float]] = ...,
+    epsg: Optional[int] = ...,
+    crs_wkt: Optional[str] = ...,
+) -> int:
+    """Writes header, index and tiles (cut to a ``bpp`` budget) atomically; the bytes written."""
+
+def tiled_plan(path: str, *, bpp: Optional[float] = ..., nbytes: Optional[int] = ...) -> dict:
+    """The grid, sample type, nodata, and per tile ``offsets`` and ``lengths`` to read."""
+
+def decode_tile(
+    path: str,
+    offset: int,
+    length: int,
+    *,
+    width: int,
+    height: int,
+    nodata: Optional[float] = ...,
+) -> Tuple[np.ndarray, np.ndarray]:
+    """``(samples, valid)`` of one tile, from one range read of the file."""

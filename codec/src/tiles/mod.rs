@@ -343,7 +343,7 @@ fn encode_row(
 /// Bytes a tile is coded to under a file budget: four times its share by area (and
 /// 4 KiB), so no tile spends time on planes the allocation would never give it bytes
 /// for, and a tile four times more detailed than the average still gets what it needs.
-fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
+pub fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
     let share = budget? as f64 * (tile.width * tile.height) as f64 / samples as f64;
     Some((4.0 * share) as u64 + 4096)
 }
@@ -502,7 +502,7 @@ pub fn decode_layout(
 mod decode;
 
 /// Bytes of each tile a decode reads: all of them, or the budget's allocation.
-fn tile_lengths(layout: &TiledLayout, max_bytes: Option<u64>) -> Result<Vec<u64>, CodecError> {
+pub fn tile_lengths(layout: &TiledLayout, max_bytes: Option<u64>) -> Result<Vec<u64>, CodecError> {
     let full: Vec<u64> = layout.entries.iter().map(|e| e.len).collect();
     let Some(budget) = max_bytes.filter(|&b| b < layout.file_len()) else {
         return Ok(full);

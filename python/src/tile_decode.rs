@@ -1,0 +1,107 @@
+//! A tiled `.ezw` file decoded a tile at a time, for `wavemesh.dask.open_ezw`: the plan
+//! read from the header and index alone ([`tiled_plan`]: where each tile lies and how
+//! many of its bytes a decode at a budget reads), then one tile from its own byte range
+//! ([`decode_tile`], run wherever the task runs).
+
+use std::path::{Path, PathBuf};
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use wavemesh::byte_source::FileSource;
+use wavemesh_codec::tiles::{tile_lengths, TiledLayout};
+use wavemesh_codec::{ByteSource, CodecError as RustCodecError, DecodeOptions, Limits};
+
+use crate::arrays::arrays_of;
+use crate::coding::bpp_budget;
+use crate::errors::{codec_error, io_error, CodecError};
+
+/// `path` opened for range reads.
+fn open(path: &Path) -> PyResult<FileSource> {
+    FileSource::open(path).map_err(|e| io_error(path, &e))
+}
+
+/// The plan of a decode of the tiled file at `path`, whole or at a budget of `bpp` bits
+/// per sample or `nbytes` bytes (as `decode` shares it among tiles), read from its header
+/// and index only: a dict of `width`, `height`, `tile_width`, `tile_height`,
+/// `sample_type`, `nodata`, and per tile in grid order `offsets` (file byte where its
+/// stream starts) and `lengths` (bytes of it the decode reads).
+#[pyfunction]
+#[pyo3(signature = (path, *, bpp=None, nbytes=None))]
+pub fn tiled_plan<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    bpp: Option<f64>,
+    nbytes: Option<u64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut source = open(&path)?;
+    let index_limit = Limits::default().max_memory / 4;
+    let layout = py
+        .detach(|| TiledLayout::read(&mut source, index_limit))
+        .map_err(|e| CodecError::new_err(format!("{}: {e}", path.display())))?
+        .ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "{} is a single-stream .ezw file, not a tiled one: decode it with wavemesh.decode",
+                path.display()
+            ))
+        })?;
+    let max_bytes = match (bpp, nbytes) {
+        (Some(_), Some(_)) => return Err(PyValueError::new_err("give bpp or nbytes, not both")),
+        (Some(bpp), None) => Some(bpp_budget(bpp, layout.header.sample_count())?),
+        (None, nbytes) => nbytes,
+    };
+    let lengths = tile_lengths(&layout, max_bytes).map_err(codec_error)?;
+    let out = PyDict::new(py);
+    out.set_item("width", layout.grid.width)?;
+    out.set_item("height", layout.grid.height)?;
+    out.set_item("tile_width", layout.grid.tile_width)?;
+    out.set_item("tile_height", layout.grid.tile_height)?;
+    out.set_item("sample_type", layout.header.sample_type.name())?;
+    out.set_item("nodata", layout.header.nodata)?;
+    out.set_item("offsets", &layout.offsets)?;
+    out.set_item("lengths", lengths)?;
+    Ok(out)
+}
+
+/// Decodes one tile of a tiled file: the `length` bytes from `offset` of `path` (one
+/// range read), a `width × height` tile whose voids are `nodata` (the file's), as
+/// `decode` decodes it; `(samples, valid)`. Damage, a tile cut short by the end of the
+/// file, or a tile of another size than the index says raise `CodecError`.
+#[pyfunction]
+#[pyo3(signature = (path, offset, length, *, width, height, nodata=None))]
+pub fn decode_tile<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    offset: u64,
+    length: usize,
+    width: usize,
+    height: usize,
+    nodata: Option<f64>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let mut source = open(&path)?;
+    let bytes = py
+        .detach(|| source.read_at(offset, length))
+        .map_err(|e| io_error(&path, &e))?;
+    let at = |e: RustCodecError| {
+        CodecError::new_err(format!("{}: tile at byte {offset}: {e}", path.display()))
+    };
+    let options = DecodeOptions {
+        strict: true,
+        threads: 1,
+        ..DecodeOptions::default()
+    };
+    let mut decoded = py
+        .detach(|| wavemesh_codec::decode(&bytes, &options))
+        .map_err(at)?;
+    let raster = &decoded.raster;
+    if (raster.width, raster.height) != (width, height) {
+        return Err(CodecError::new_err(format!(
+            "{}: tile at byte {offset} is {} x {}, the index says {width} x {height}",
+            path.display(),
+            raster.width,
+            raster.height
+        )));
+    }
+    decoded.raster.nodata = nodata;
+    arrays_of(py, decoded.raster)
+}

@@ -1,0 +1,240 @@
+//! A tiled `.ezw` file encoded a tile at a time, for `wavemesh.dask.to_ezw`: the grid a
+//! raster is cut into ([`tile_grid`]), one tile's stream and summary ([`encode_tile`],
+//! run where the tile's samples are), and the file assembled from all of them
+//! ([`write_tiled`]). The codec's own tile functions do the work, so the file holds the
+//! bytes of a single-machine `encode` of the same raster.
+
+use std::path::PathBuf;
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+use wavemesh_codec::tiles::{
+    cut_to_budget, encode_tile as encode_one_tile, tile_cap, tiled_head, EncodedTile, RasterInfo,
+    TileEntry, TileSummary,
+};
+use wavemesh_codec::{Header, Metadata, Mode, TileGrid, Wavelet, Window};
+
+use crate::coding::{bpp_budget, encode_options, raster_with};
+use crate::errors::{codec_error, io_error};
+use crate::georef::georef_of;
+
+/// A tile's summary as plain Python values (picklable, so it travels from a worker to
+/// the driver): `len`, `head_len`, initial error, passes `(end, error)`, mode name, error
+/// bound, valid range, wavelet code, levels.
+type SummaryValues = (
+    u64,
+    u64,
+    f64,
+    Vec<(u64, f64)>,
+    String,
+    f64,
+    Option<(f64, f64)>,
+    u8,
+    u8,
+);
+
+/// The values of `summary`, exactly (errors are Python floats: f64 both sides).
+fn summary_values(summary: TileSummary) -> SummaryValues {
+    let entry = summary.entry;
+    (
+        entry.len,
+        entry.head_len,
+        entry.initial_error,
+        entry.passes,
+        summary.mode.name().to_string(),
+        summary.max_error,
+        summary.valid_range,
+        summary.wavelet.code(),
+        summary.levels,
+    )
+}
+
+/// The summary `values` hold (see [`summary_values`]) of a tile of `len` bytes.
+fn summary_of(values: SummaryValues, tile_len: usize) -> PyResult<TileSummary> {
+    let (len, head_len, initial_error, passes, mode, max_error, valid_range, wavelet, levels) =
+        values;
+    let bad = |what: &str| PyValueError::new_err(format!("not a tile summary: {what}"));
+    let mut ends = std::iter::once(head_len).chain(passes.iter().map(|p| p.0));
+    if len != tile_len as u64 || !ends.all(|end| end >= head_len && end <= len) {
+        return Err(bad("lengths that do not fit its tile"));
+    }
+    if !passes.windows(2).all(|pair| pair[0].0 <= pair[1].0) {
+        return Err(bad("passes out of order"));
+    }
+    let mode = [Mode::Lossless, Mode::Lossy, Mode::MaxError, Mode::Precision]
+        .into_iter()
+        .find(|m| m.name() == mode)
+        .ok_or_else(|| bad("unknown mode"))?;
+    Ok(TileSummary {
+        entry: TileEntry {
+            len,
+            head_len,
+            initial_error,
+            passes,
+        },
+        mode,
+        max_error,
+        valid_range,
+        wavelet: Wavelet::from_code(wavelet).ok_or_else(|| bad("unknown wavelet"))?,
+        levels,
+    })
+}
+
+/// The tile size of a `width × height` raster cut into tiles of at most `tile` a side,
+/// as equal as the raster allows, or `None` when one tile covers it; checks the quality
+/// keywords as `encode` would, so bad ones fail before any tile is coded.
+#[pyfunction]
+#[pyo3(signature = (width, height, tile, *, bpp=None, max_error=None, precision=None,
+    wavelet=None))]
+pub fn tile_grid(
+    width: usize,
+    height: usize,
+    tile: usize,
+    bpp: Option<f64>,
+    max_error: Option<f64>,
+    precision: Option<f64>,
+    wavelet: Option<&str>,
+) -> PyResult<Option<(usize, usize)>> {
+    if tile == 0 {
+        return Err(PyValueError::new_err(
+            "tile must be a positive integer, got 0",
+        ));
+    }
+    let too_large = width > u32::MAX as usize || height > u32::MAX as usize;
+    if width == 0 || height == 0 || too_large {
+        return Err(PyValueError::new_err(format!(
+            "cannot encode a {height} x {width} array"
+        )));
+    }
+    let samples = (width as u64).saturating_mul(height as u64);
+    encode_options(samples, bpp, max_error, precision, wavelet)?;
+    Ok(TileGrid::balanced(width, height, tile).map(|g| (g.tile_width, g.tile_height)))
+}
+
+/// Encodes one tile of a `raster_width × raster_height` raster (the quality keywords are
+/// those of the whole raster's `encode`; a `bpp` budget caps the tile at what the
+/// single-machine encoder codes it to): `(stream, summary)`, the summary opaque values
+/// for [`write_tiled`].
+#[pyfunction]
+#[pyo3(signature = (array, *, raster_width, raster_height, nodata=None, bpp=None,
+    max_error=None, precision=None, wavelet=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn encode_tile<'py>(
+    py: Python<'py>,
+    array: &Bound<'py, PyAny>,
+    raster_width: usize,
+    raster_height: usize,
+    nodata: Option<f64>,
+    bpp: Option<f64>,
+    max_error: Option<f64>,
+    precision: Option<f64>,
+    wavelet: Option<&str>,
+) -> PyResult<(Bound<'py, PyBytes>, SummaryValues)> {
+    let part = raster_with(array, nodata, None, None, None)?;
+    let samples = (raster_width as u64).saturating_mul(raster_height as u64);
+    let options = encode_options(samples, bpp, max_error, precision, wavelet)?;
+    let window = Window {
+        x: 0,
+        y: 0,
+        width: part.width,
+        height: part.height,
+    };
+    let cap = tile_cap(options.budget_bytes, &window, samples);
+    let tile = py
+        .detach(|| encode_one_tile(&part, &options, cap))
+        .map_err(codec_error)?;
+    Ok((PyBytes::new(py, &tile.bytes), summary_values(tile.summary)))
+}
+
+/// The tiles `write_tiled` receives: `(stream, summary)` per tile, in grid order.
+type TileValues<'py> = Vec<(Bound<'py, PyBytes>, SummaryValues)>;
+
+/// Writes a tiled `.ezw` file atomically from its tiles (from [`encode_tile`], in grid
+/// order, on the grid of `tile_width × tile_height` tiles): header, index and tiles, the
+/// tiles cut to a whole-file `bpp` budget as the single-machine encoder cuts them.
+/// Returns the bytes written.
+#[pyfunction]
+#[pyo3(signature = (path, tiles, *, width, height, tile_width, tile_height, nodata=None,
+    bpp=None, geotransform=None, epsg=None, crs_wkt=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn write_tiled(
+    py: Python<'_>,
+    path: PathBuf,
+    tiles: TileValues<'_>,
+    width: usize,
+    height: usize,
+    tile_width: usize,
+    tile_height: usize,
+    nodata: Option<f64>,
+    bpp: Option<f64>,
+    geotransform: Option<[f64; 6]>,
+    epsg: Option<i64>,
+    crs_wkt: Option<String>,
+) -> PyResult<u64> {
+    if [width, height, tile_width, tile_height].contains(&0) {
+        return Err(PyValueError::new_err(format!(
+            "a {width} x {height} raster in {tile_width} x {tile_height} tiles"
+        )));
+    }
+    let grid = TileGrid {
+        width,
+        height,
+        tile_width,
+        tile_height,
+    };
+    if tiles.len() != grid.count() {
+        return Err(PyValueError::new_err(format!(
+            "a {width} x {height} raster in {tile_width} x {tile_height} tiles has {} tiles, got {}",
+            grid.count(),
+            tiles.len()
+        )));
+    }
+    let tiles = tiles
+        .into_iter()
+        .map(|(bytes, values)| {
+            Ok(EncodedTile {
+                summary: summary_of(values, bytes.as_bytes().len())?,
+                bytes: bytes.as_bytes().to_vec(),
+            })
+        })
+        .collect::<PyResult<Vec<EncodedTile>>>()?;
+    let (georef, crs_wkt) = georef_of(geotransform, epsg, crs_wkt)?;
+    let (first, _) = Header::parse(&tiles[0].bytes).map_err(codec_error)?;
+    let info = RasterInfo {
+        width,
+        height,
+        sample_type: first.sample_type,
+        nodata,
+        georef,
+        metadata: Metadata {
+            crs_wkt,
+            ..Metadata::default()
+        },
+    };
+    let budget = bpp
+        .map(|bpp| bpp_budget(bpp, (width * height) as u64))
+        .transpose()?;
+    py.detach(|| write_file(&path, tiles, &info, &grid, budget))
+}
+
+/// Cuts `tiles` to `budget` (if any) and writes the file: header and index, then tiles.
+fn write_file(
+    path: &std::path::Path,
+    mut tiles: Vec<EncodedTile>,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    budget: Option<u64>,
+) -> PyResult<u64> {
+    if let Some(budget) = budget {
+        tiles = cut_to_budget(tiles, info, grid, budget).map_err(codec_error)?;
+    }
+    let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
+    let head = tiled_head(info, grid, &summaries);
+    wavemesh::atomic::write_atomic(path, |w| {
+        w.write_all(&head)?;
+        tiles.iter().try_for_each(|t| w.write_all(&t.bytes))
+    })
+    .map_err(|e| io_error(path, &e))?;
+    Ok(head.len() as u64 + tiles.iter().map(|t| t.bytes.len() as u64).sum::<u64>())
+}
