@@ -23,7 +23,8 @@ fn open(path: &Path) -> PyResult<FileSource> {
 
 /// The plan of a decode of the tiled file at `path`, whole or at a budget of `bpp` bits
 /// per sample or `nbytes` bytes (as `decode` shares it among tiles), read from its header
-/// and index only: a dict of `width`, `height`, `tile_width`, `tile_height`,
+/// and index only: a dict of `width`, `height`, `tile_width`, `tile_height`, `overlap`
+/// (samples each tile's stream codes beyond the tile on each side, within the raster),
 /// `sample_type`, `nodata`, and per tile in grid order `offsets` (file byte where its
 /// stream starts) and `lengths` (bytes of it the decode reads).
 #[pyfunction]
@@ -56,6 +57,7 @@ pub fn tiled_plan<'py>(
     out.set_item("height", layout.grid.height)?;
     out.set_item("tile_width", layout.grid.tile_width)?;
     out.set_item("tile_height", layout.grid.tile_height)?;
+    out.set_item("overlap", layout.grid.overlap)?;
     out.set_item("sample_type", layout.header.sample_type.name())?;
     out.set_item("nodata", layout.header.nodata)?;
     out.set_item("offsets", &layout.offsets)?;
@@ -65,10 +67,13 @@ pub fn tiled_plan<'py>(
 
 /// Decodes one tile of a tiled file: the `length` bytes from `offset` of `path` (one
 /// range read), a `width × height` tile whose voids are `nodata` (the file's), as
-/// `decode` decodes it; `(samples, valid)`. Damage, a tile cut short by the end of the
-/// file, or a tile of another size than the index says raise `CodecError`.
+/// `decode` decodes it; `(samples, valid)`. The stream codes the tile and its overlap:
+/// `coded = (x, y, coded_width, coded_height)` says where the tile lies in what it codes
+/// (the tile alone when not given). Damage, a tile cut short by the end of the file, or
+/// a tile of another size raise `CodecError`.
 #[pyfunction]
-#[pyo3(signature = (path, offset, length, *, width, height, nodata=None))]
+#[pyo3(signature = (path, offset, length, *, width, height, nodata=None, coded=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn decode_tile<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -77,7 +82,14 @@ pub fn decode_tile<'py>(
     width: usize,
     height: usize,
     nodata: Option<f64>,
+    coded: Option<(usize, usize, usize, usize)>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let (x, y, coded_width, coded_height) = coded.unwrap_or((0, 0, width, height));
+    if x + width > coded_width || y + height > coded_height {
+        return Err(PyValueError::new_err(format!(
+            "a {width} x {height} tile at ({x}, {y}) of {coded_width} x {coded_height} samples"
+        )));
+    }
     let mut source = open(&path)?;
     let bytes = py
         .detach(|| source.read_at(offset, length))
@@ -90,18 +102,19 @@ pub fn decode_tile<'py>(
         threads: 1,
         ..DecodeOptions::default()
     };
-    let mut decoded = py
+    let decoded = py
         .detach(|| wavemesh_codec::decode(&bytes, &options))
         .map_err(at)?;
     let raster = &decoded.raster;
-    if (raster.width, raster.height) != (width, height) {
+    if (raster.width, raster.height) != (coded_width, coded_height) {
         return Err(CodecError::new_err(format!(
-            "{}: tile at byte {offset} is {} x {}, the index says {width} x {height}",
+            "{}: tile at byte {offset} is {} x {}, the index says {coded_width} x {coded_height}",
             path.display(),
             raster.width,
             raster.height
         )));
     }
-    decoded.raster.nodata = nodata;
-    arrays_of(py, decoded.raster)
+    let mut tile = decoded.raster.crop(x, y, width, height);
+    tile.nodata = nodata;
+    arrays_of(py, tile)
 }

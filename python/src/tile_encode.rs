@@ -81,8 +81,11 @@ fn summary_of(values: SummaryValues, tile_len: usize) -> PyResult<TileSummary> {
     })
 }
 
-/// The tile size of a `width × height` raster cut into tiles of at most `tile` a side,
-/// as equal as the raster allows, or `None` when one tile covers it; checks the quality
+/// The tile size and overlap of a `width × height` raster cut into tiles of at most
+/// `tile` a side, as equal as the raster allows, or `None` when one tile covers it (tile
+/// `(row, column)` codes the samples from `column · tile_width − overlap` to
+/// `(column + 1) · tile_width + overlap` across, within the raster, and likewise down);
+/// checks the quality
 /// keywords as `encode` would, so bad ones fail before any tile is coded.
 #[pyfunction]
 #[pyo3(signature = (width, height, tile, *, bpp=None, max_error=None, precision=None,
@@ -95,7 +98,7 @@ pub fn tile_grid(
     max_error: Option<f64>,
     precision: Option<f64>,
     wavelet: Option<&str>,
-) -> PyResult<Option<(usize, usize)>> {
+) -> PyResult<Option<(usize, usize, usize)>> {
     if tile == 0 {
         return Err(PyValueError::new_err(
             "tile must be a positive integer, got 0",
@@ -109,16 +112,17 @@ pub fn tile_grid(
     }
     let samples = (width as u64).saturating_mul(height as u64);
     encode_options(samples, bpp, max_error, precision, wavelet)?;
-    Ok(TileGrid::balanced(width, height, tile).map(|g| (g.tile_width, g.tile_height)))
+    Ok(TileGrid::balanced(width, height, tile).map(|g| (g.tile_width, g.tile_height, g.overlap)))
 }
 
-/// Encodes one tile of a `raster_width × raster_height` raster (the quality keywords are
-/// those of the whole raster's `encode`; a `bpp` budget caps the tile at what the
-/// single-machine encoder codes it to): `(stream, summary)`, the summary opaque values
-/// for [`write_tiled`].
+/// Encodes the samples one tile of a `raster_width × raster_height` raster codes (the
+/// tile and its overlap; the quality keywords are those of the whole raster's `encode`; a
+/// `bpp` budget caps the tile at what the single-machine encoder first codes it to, or at
+/// `cap` bytes when given): `(stream, summary)`, the summary opaque values for
+/// [`write_tiled`].
 #[pyfunction]
 #[pyo3(signature = (array, *, raster_width, raster_height, nodata=None, bpp=None,
-    max_error=None, precision=None, wavelet=None))]
+    max_error=None, precision=None, wavelet=None, cap=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode_tile<'py>(
     py: Python<'py>,
@@ -130,6 +134,7 @@ pub fn encode_tile<'py>(
     max_error: Option<f64>,
     precision: Option<f64>,
     wavelet: Option<&str>,
+    cap: Option<u64>,
 ) -> PyResult<(Bound<'py, PyBytes>, SummaryValues)> {
     let part = raster_with(array, nodata, None, None, None)?;
     let samples = (raster_width as u64).saturating_mul(raster_height as u64);
@@ -140,7 +145,7 @@ pub fn encode_tile<'py>(
         width: part.width,
         height: part.height,
     };
-    let cap = tile_cap(options.budget_bytes, &window, samples);
+    let cap = cap.or_else(|| tile_cap(options.budget_bytes, &window, samples));
     let tile = py
         .detach(|| encode_one_tile(&part, &options, cap))
         .map_err(codec_error)?;
@@ -151,12 +156,13 @@ pub fn encode_tile<'py>(
 type TileValues<'py> = Vec<(Bound<'py, PyBytes>, SummaryValues)>;
 
 /// Writes a tiled `.ezw` file atomically from its tiles (from [`encode_tile`], in grid
-/// order, on the grid of `tile_width × tile_height` tiles): header, index and tiles, the
-/// tiles cut to a whole-file `bpp` budget as the single-machine encoder cuts them.
-/// Returns the bytes written.
+/// order, on the grid of `tile_width × tile_height` tiles overlapping by `overlap`):
+/// header, index and tiles, the tiles cut to a whole-file `bpp` budget as the
+/// single-machine encoder cuts them — a tile its first cap starved is coded again by
+/// `recode(k, cap)` (returning what [`encode_tile`] returns). Returns the bytes written.
 #[pyfunction]
-#[pyo3(signature = (path, tiles, *, width, height, tile_width, tile_height, nodata=None,
-    bpp=None, geotransform=None, epsg=None, crs_wkt=None))]
+#[pyo3(signature = (path, tiles, *, width, height, tile_width, tile_height, overlap,
+    nodata=None, bpp=None, geotransform=None, epsg=None, crs_wkt=None, recode=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn write_tiled(
     py: Python<'_>,
@@ -166,11 +172,13 @@ pub fn write_tiled(
     height: usize,
     tile_width: usize,
     tile_height: usize,
+    overlap: usize,
     nodata: Option<f64>,
     bpp: Option<f64>,
     geotransform: Option<[f64; 6]>,
     epsg: Option<i64>,
     crs_wkt: Option<String>,
+    recode: Option<Bound<'_, PyAny>>,
 ) -> PyResult<u64> {
     if [width, height, tile_width, tile_height].contains(&0) {
         return Err(PyValueError::new_err(format!(
@@ -182,6 +190,7 @@ pub fn write_tiled(
         height,
         tile_width,
         tile_height,
+        overlap,
     };
     if tiles.len() != grid.count() {
         return Err(PyValueError::new_err(format!(
@@ -215,7 +224,37 @@ pub fn write_tiled(
     let budget = bpp
         .map(|bpp| bpp_budget(bpp, (width * height) as u64))
         .transpose()?;
-    py.detach(|| write_file(&path, tiles, &info, &grid, budget))
+    let recode = recode.map(Bound::unbind);
+    py.detach(|| write_file(&path, tiles, &info, &grid, budget, recode.as_ref()))
+}
+
+/// Why [`write_file`]'s cut failed: the codec, or the Python `recode`.
+enum CutError {
+    Codec(wavemesh_codec::CodecError),
+    Python(PyErr),
+}
+
+impl From<wavemesh_codec::CodecError> for CutError {
+    fn from(e: wavemesh_codec::CodecError) -> CutError {
+        CutError::Codec(e)
+    }
+}
+
+/// Tile `k` coded again up to `cap` bytes by the Python `recode`.
+fn recoded(recode: Option<&Py<PyAny>>, k: usize, cap: u64) -> Result<EncodedTile, CutError> {
+    let recode = recode.ok_or_else(|| {
+        CutError::Python(PyValueError::new_err(
+            "a tile needs coding again under the budget, and no recode was given",
+        ))
+    })?;
+    Python::attach(|py| {
+        let (bytes, values): (Vec<u8>, SummaryValues) = recode.call1(py, (k, cap))?.extract(py)?;
+        Ok(EncodedTile {
+            summary: summary_of(values, bytes.len())?,
+            bytes,
+        })
+    })
+    .map_err(CutError::Python)
 }
 
 /// Cuts `tiles` to `budget` (if any) and writes the file: header and index, then tiles.
@@ -225,9 +264,14 @@ fn write_file(
     info: &RasterInfo,
     grid: &TileGrid,
     budget: Option<u64>,
+    recode: Option<&Py<PyAny>>,
 ) -> PyResult<u64> {
     if let Some(budget) = budget {
-        tiles = cut_to_budget(tiles, info, grid, budget).map_err(codec_error)?;
+        let mut recode = |k, cap| recoded(recode, k, cap);
+        tiles = cut_to_budget(tiles, info, grid, budget, &mut recode).map_err(|e| match e {
+            CutError::Codec(e) => codec_error(e),
+            CutError::Python(e) => e,
+        })?;
     }
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
     let head = tiled_head(info, grid, &summaries);

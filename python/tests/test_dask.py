@@ -55,6 +55,18 @@ def test_float_voids_and_qualities_equal_the_single_machine_encode(tmp_path, qua
         assert len(data) <= quality["bpp"] * dem.size / 8
 
 
+def test_a_tile_starved_by_its_first_cap_is_coded_again_as_encode_does(tmp_path):
+    # One rough tile among flat ones needs far more than 4x its share of a 1 bpp budget:
+    # the driver has it coded again with a larger cap, as the single-machine encoder does.
+    dem = np.full((512, 512), 100, np.int16)
+    rng = np.random.default_rng(1)
+    dem[:128, :128] = rng.integers(-2000, 2000, (128, 128), dtype=np.int16)
+    data = written(tmp_path, da.from_array(dem, chunks=200), tile=128, bpp=1.0)
+    assert data == wavemesh.encode(dem, tile=128, bpp=1.0)
+    rough = wavemesh.decode(data)[:128, :128]
+    assert np.abs(rough.astype(np.int32) - dem[:128, :128]).max() < 200
+
+
 def test_nodata_masks_and_georeferencing_equal_the_single_machine_encode(tmp_path):
     dem = terrain(np.int16, (130, 140), seed=5)
     dem[:10, :10] = -9999
@@ -145,13 +157,17 @@ def test_native_tile_functions_assemble_the_encode_and_refuse_what_does_not_fit(
     from wavemesh import _wavemesh
 
     dem = terrain(np.int16, (100, 100))
+    assert _wavemesh.tile_grid(100, 100, 50) == (50, 50, 2)
+    # Each tile's stream codes the tile and two samples around it, within the raster.
     tiles = [
-        _wavemesh.encode_tile(dem[y : y + 50, x : x + 50], raster_width=100, raster_height=100)
+        _wavemesh.encode_tile(
+            dem[max(y - 2, 0) : y + 52, max(x - 2, 0) : x + 52], raster_width=100, raster_height=100
+        )
         for y in (0, 50)
         for x in (0, 50)
     ]
     path = str(tmp_path / "native.ezw")
-    grid = dict(width=100, height=100, tile_width=50, tile_height=50)
+    grid = dict(width=100, height=100, tile_width=50, tile_height=50, overlap=2)
     assert _wavemesh.write_tiled(path, tiles, **grid) == len(wavemesh.encode(dem, tile=50))
     assert open(path, "rb").read() == wavemesh.encode(dem, tile=50)
     with pytest.raises(ValueError, match="has 4 tiles, got 3"):

@@ -1,7 +1,7 @@
 """Type stubs of the compiled half of the package (``wavemesh._wavemesh``); the public
 functions in ``wavemesh`` wrap these."""
 
-from typing import List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -103,8 +103,9 @@ def tile_grid(
     max_error: Optional[float] = ...,
     precision: Optional[float] = ...,
     wavelet: Optional[str] = ...,
-) -> Optional[Tuple[int, int]]:
-    """``(tile_width, tile_height)`` of the raster's balanced grid, ``None`` for one stream."""
+) -> Optional[Tuple[int, int, int]]:
+    """``(tile_width, tile_height, overlap)`` of the raster's balanced grid, ``None`` for
+    one stream."""
 
 def encode_tile(
     array: np.ndarray,
@@ -116,8 +117,10 @@ def encode_tile(
     max_error: Optional[float] = ...,
     precision: Optional[float] = ...,
     wavelet: Optional[str] = ...,
+    cap: Optional[int] = ...,
 ) -> Tuple[bytes, TileSummary]:
-    """One tile's stream and summary, as the single-machine encoder codes that tile."""
+    """One tile's stream and summary (``array``: the tile and its overlap), as the
+    single-machine encoder codes that tile (up to ``cap`` bytes when given)."""
 
 def write_tiled(
     path: str,
@@ -127,13 +130,16 @@ def write_tiled(
     height: int,
     tile_width: int,
     tile_height: int,
+    overlap: int,
     nodata: Optional[float] = ...,
     bpp: Optional[float] = ...,
     geotransform: Optional[Sequence[float]] = ...,
     epsg: Optional[int] = ...,
     crs_wkt: Optional[str] = ...,
+    recode: Optional[Callable[[int, int], Tuple[bytes, TileSummary]]] = ...,
 ) -> int:
-    """Writes header, index and tiles (cut to a ``bpp`` budget) atomically; the bytes written."""
+    """Writes header, index and tiles (cut to a ``bpp`` budget, tiles a first cap starved
+    coded again by ``recode(k, cap)``) atomically; the bytes written."""
 
 def tiled_plan(path: str, *, bpp: Optional[float] = ..., nbytes: Optional[int] = ...) -> dict:
     """The grid, sample type, nodata, and per tile ``offsets`` and ``lengths`` to read."""
@@ -146,5 +152,7 @@ def decode_tile(
     width: int,
     height: int,
     nodata: Optional[float] = ...,
+    coded: Optional[Tuple[int, int, int, int]] = ...,
 ) -> Tuple[np.ndarray, np.ndarray]:
-    """``(samples, valid)`` of one tile, from one range read of the file."""
+    """``(samples, valid)`` of one tile, from one range read of the file; ``coded`` is
+    ``(x, y, width, height)``: where the tile lies in what its stream codes."""

@@ -3,7 +3,7 @@
 :func:`to_ezw` cuts the array into the tile grid :func:`wavemesh.encode` would use
 (rechunking it: the grid's tiles are as equal as the raster allows, 1201 samples with
 ``tile=1024`` being 601 + 600, so chunks need not be aligned by hand), encodes each tile
-in a task, and writes header, index and tiles into one file, atomically: the bytes of
+(with the two samples around it that its stream also codes) in a task, and writes header, index and tiles into one file, atomically: the bytes of
 ``wavemesh.encode(array, tile=tile, ...)`` of the same samples. :func:`open_ezw` gives a
 lazy ``dask.array.Array`` of a tiled file, one task per tile, each reading only its
 tile's bytes. Tasks run on whatever scheduler is active: Dask's threads by default, a
@@ -109,15 +109,53 @@ def _filled(array, nodata: Optional[float]):
     return array, None if nodata is None else float(nodata)
 
 
-def _coded_tiles(array, grid: Tuple[int, int], nodata, quality: dict) -> list:
+def _coded_window(k: int, grid: Tuple[int, int, int], shape: Tuple[int, int]):
+    """``(rows, columns)`` slices of the samples tile ``k``'s stream codes: the tile and
+    ``overlap`` more on each side, within the raster (``grid`` is tile width, height and
+    overlap, ``shape`` the raster's)."""
+    (tile_width, tile_height, overlap), (height, width) = grid, shape
+    row, column = divmod(k, len(_sides(width, tile_width)))
+    y, x = row * tile_height, column * tile_width
+    return (
+        slice(max(y - overlap, 0), min(y + tile_height + overlap, height)),
+        slice(max(x - overlap, 0), min(x + tile_width + overlap, width)),
+    )
+
+
+def _coded_tiles(array, grid: Tuple[int, int, int], nodata, quality: dict) -> list:
     """Every tile's ``(stream, summary)`` in grid order, each coded in its own task from
-    ``array`` rechunked to the grid of ``grid`` (tile width, height) tiles."""
+    ``array`` rechunked to the grid (``grid``: tile width, height and overlap), each task
+    given its tile and the overlap around it."""
     dask, _ = _modules()
-    (tile_width, tile_height), (height, width) = grid, array.shape
+    tile_width, tile_height, _ = grid
+    height, width = array.shape
     blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
+    count = len(_sides(height, tile_height)) * len(_sides(width, tile_width))
     encode = dask.delayed(_encode_block)
-    tasks = [encode(b, (height, width), nodata, quality) for b in blocks.to_delayed().ravel()]
+    tasks = [
+        encode(blocks[_coded_window(k, grid, array.shape)], (height, width), nodata, quality)
+        for k in range(count)
+    ]
     return list(dask.compute(*tasks))
+
+
+def _recoder(array, grid: Tuple[int, int, int], nodata, quality: dict):
+    """``recode(k, cap)`` for ``write_tiled``: tile ``k`` coded again up to ``cap`` bytes
+    (a tile its first cap starved under a ``bpp`` budget), its samples computed again."""
+
+    def recode(k: int, cap: int):
+        block = array[_coded_window(k, grid, array.shape)].compute()
+        height, width = array.shape
+        return _wavemesh.encode_tile(
+            wavemesh._native_2d(block),
+            raster_width=width,
+            raster_height=height,
+            nodata=nodata,
+            cap=cap,
+            **quality,
+        )
+
+    return recode
 
 
 def to_ezw(
@@ -159,7 +197,7 @@ def to_ezw(
         )
         wavemesh._write_atomic(path, data)
         return len(data)
-    tile_width, tile_height = grid
+    tile_width, tile_height, overlap = grid
     return _wavemesh.write_tiled(
         os.fspath(path),
         _coded_tiles(array, grid, nodata, quality),
@@ -167,11 +205,13 @@ def to_ezw(
         height=height,
         tile_width=tile_width,
         tile_height=tile_height,
+        overlap=overlap,
         nodata=nodata,
         bpp=bpp,
         geotransform=geotransform,
         epsg=epsg,
         crs_wkt=wkt,
+        recode=_recoder(array, grid, nodata, quality),
     )
 
 
@@ -185,6 +225,7 @@ class _TileReader:
         self.ndim = 2
         self.dtype = _SAMPLE_TYPES[plan["sample_type"]]
         self.tile_shape = (plan["tile_height"], plan["tile_width"])
+        self.overlap = plan["overlap"]
         self.nodata = plan["nodata"]
         self.offsets = plan["offsets"]
         self.lengths = plan["lengths"]
@@ -207,6 +248,8 @@ class _TileReader:
         if (rows.start, rows.stop, columns.start, columns.stop) != (y, y + height, x, x + width):
             raise IndexError(f"reads whole tiles only, not {key!r}")
         k = row * len(self.chunks[1]) + column
+        grid = (tile_width, tile_height, self.overlap)
+        coded_rows, coded_columns = _coded_window(k, grid, self.shape)
         samples, valid = _wavemesh.decode_tile(
             self.path,
             self.offsets[k],
@@ -214,6 +257,12 @@ class _TileReader:
             width=width,
             height=height,
             nodata=self.nodata,
+            coded=(
+                x - coded_columns.start,
+                y - coded_rows.start,
+                coded_columns.stop - coded_columns.start,
+                coded_rows.stop - coded_rows.start,
+            ),
         )
         tile = wavemesh._masked(samples, valid, self.nodata)
         if not wavemesh._fill_value_fits(self.nodata, tile.dtype):
