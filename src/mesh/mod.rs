@@ -14,13 +14,14 @@ pub mod greedy;
 pub mod pyramid;
 pub mod qem;
 pub mod rasterise;
+pub mod tiled;
 pub mod triangulate;
 
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
 use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
-use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
+use pyramid::{node_bounds, ErrorPyramid, Heights, Shape, VoidPyramid};
 use rasterise::rasterise_triangle;
 use triangulate::{cell_triangles, Scratch};
 
@@ -61,6 +62,33 @@ pub struct Mesher<'a> {
     heights: Heights<'a>,
     voids: Option<VoidPyramid>,
     errors: Option<ErrorPyramid>,
+    fine_borders: FineBorders,
+}
+
+/// Sides of the grid along which every sample is a vertex: every cell touching them
+/// splits down to single grid cells. Two meshes of grids that share such a side then
+/// have the same vertices along it, whatever their interiors (tiles of one DEM).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FineBorders {
+    /// The first row.
+    pub top: bool,
+    /// The last column.
+    pub right: bool,
+    /// The last row.
+    pub bottom: bool,
+    /// The first column.
+    pub left: bool,
+}
+
+impl FineBorders {
+    /// Whether node `(level, i, j)` of a `width × height` grid touches one of the sides.
+    pub fn touch(&self, width: usize, height: usize, level: u32, i: usize, j: usize) -> bool {
+        let (x0, y0, x1, y1) = node_bounds(width, height, level, i, j);
+        (self.top && y0 == 0)
+            || (self.left && x0 == 0)
+            || (self.bottom && y1 == height - 1)
+            || (self.right && x1 == width - 1)
+    }
 }
 
 /// What a mesh is asked to meet.
@@ -110,7 +138,22 @@ impl<'a> Mesher<'a> {
             heights,
             voids,
             errors: None,
+            fine_borders: FineBorders::default(),
         }
+    }
+
+    /// The same mesher, with every sample along `sides` a vertex of every mesh it builds.
+    pub fn with_fine_borders(self, sides: FineBorders) -> Mesher<'a> {
+        Mesher {
+            fine_borders: sides,
+            ..self
+        }
+    }
+
+    /// Whether node `(m, i, j)` must split because it touches a fine border.
+    fn on_fine_border(&self, m: u32, i: usize, j: usize) -> bool {
+        let (width, height) = (self.heights.width, self.heights.height);
+        self.fine_borders.touch(width, height, m, i, j)
     }
 
     /// The heights meshes are built from.
@@ -127,7 +170,17 @@ impl<'a> Mesher<'a> {
 
     /// The cell partition at threshold `2^plane` under `rule` (the search step).
     pub fn cells_at_plane(&self, plane: u32, rule: SplitRule) -> CellTree {
-        CellTree::from_significance(self.map, plane, rule, self.voids.as_ref())
+        if self.fine_borders == FineBorders::default() {
+            return CellTree::from_significance(self.map, plane, rule, self.voids.as_ref());
+        }
+        let map = self.map;
+        CellTree::build(
+            map.width(),
+            map.height(),
+            map.levels(),
+            self.voids.as_ref(),
+            |m, i, j| significant(map, plane, rule, m, i, j) || self.on_fine_border(m, i, j),
+        )
     }
 
     /// Triangulates a threshold partition (the triangulation step), every cell as two
@@ -213,9 +266,11 @@ impl<'a> Mesher<'a> {
         self.error_pyramid();
         let errors = self.errors.as_ref().expect("computed above");
         let (map, heights, voids) = (self.map, self.heights, self.voids.as_ref());
+        let fine = self.fine_borders;
         let test = |m: u32, i: usize, j: usize| {
             base_plane.is_some_and(|p| significant(map, p, rule, m, i, j))
                 || too_rough(errors, tolerance, m, i, j)
+                || fine.touch(heights.width, heights.height, m, i, j)
         };
         // Leaves take the cheapest shape within the tolerance; a leaf of the zerotree
         // base that is not within it splits by the test above.
