@@ -482,6 +482,11 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         ));
     }
     if args.tiling.enabled() {
+        if args.bpp.is_some() {
+            return Err(CliError::Usage(
+                "--tile-meshes meshes each tile's lossless stream: --bpp does not apply".into(),
+            ));
+        }
         let paths = (args.input.as_path(), args.output.as_path());
         return mesh_tiles(paths, &args.mesh, &args.tiling, &args.input_args, args.json);
     }

@@ -24,7 +24,7 @@ pub struct TilingArgs {
     /// Write one glb per tile into the folder -o names (made if missing), with an index
     /// `tiles.json`; neighbouring tiles share their border vertices exactly. The DEM is
     /// read a tile row at a time. Lossless zerotree meshes only (no --bpp, no --method).
-    #[arg(long, conflicts_with_all = ["bpp", "method"])]
+    #[arg(long, conflicts_with = "method")]
     tile_meshes: bool,
     /// Largest tile side of --tile-meshes, in samples (tiles as equal as the DEM allows).
     #[arg(
