@@ -21,7 +21,7 @@ use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
 use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
-use pyramid::{node_bounds, ErrorPyramid, Heights, Shape, VoidPyramid};
+use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
 use rasterise::rasterise_triangle;
 use triangulate::{cell_triangles, Scratch};
 
@@ -65,9 +65,10 @@ pub struct Mesher<'a> {
     fine_borders: FineBorders,
 }
 
-/// Sides of the grid along which every sample is a vertex: every cell touching them
-/// splits down to single grid cells. Two meshes of grids that share such a side then
-/// have the same vertices along it, whatever their interiors (tiles of one DEM).
+/// Sides of the grid along which every sample is a vertex: the cells along them are
+/// triangulated with every sample of their side on it, as if single grid cells lay
+/// across. Two meshes of grids that share such a side then have the same vertices and
+/// edges along it, whatever their interiors (tiles of one DEM).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FineBorders {
     /// The first row.
@@ -78,17 +79,6 @@ pub struct FineBorders {
     pub bottom: bool,
     /// The first column.
     pub left: bool,
-}
-
-impl FineBorders {
-    /// Whether node `(level, i, j)` of a `width × height` grid touches one of the sides.
-    pub fn touch(&self, width: usize, height: usize, level: u32, i: usize, j: usize) -> bool {
-        let (x0, y0, x1, y1) = node_bounds(width, height, level, i, j);
-        (self.top && y0 == 0)
-            || (self.left && x0 == 0)
-            || (self.bottom && y1 == height - 1)
-            || (self.right && x1 == width - 1)
-    }
 }
 
 /// What a mesh is asked to meet.
@@ -150,12 +140,6 @@ impl<'a> Mesher<'a> {
         }
     }
 
-    /// Whether node `(m, i, j)` must split because it touches a fine border.
-    fn on_fine_border(&self, m: u32, i: usize, j: usize) -> bool {
-        let (width, height) = (self.heights.width, self.heights.height);
-        self.fine_borders.touch(width, height, m, i, j)
-    }
-
     /// The heights meshes are built from.
     pub fn heights(&self) -> Heights<'a> {
         self.heights
@@ -170,17 +154,9 @@ impl<'a> Mesher<'a> {
 
     /// The cell partition at threshold `2^plane` under `rule` (the search step).
     pub fn cells_at_plane(&self, plane: u32, rule: SplitRule) -> CellTree {
-        if self.fine_borders == FineBorders::default() {
-            return CellTree::from_significance(self.map, plane, rule, self.voids.as_ref());
-        }
-        let map = self.map;
-        CellTree::build(
-            map.width(),
-            map.height(),
-            map.levels(),
-            self.voids.as_ref(),
-            |m, i, j| significant(map, plane, rule, m, i, j) || self.on_fine_border(m, i, j),
-        )
+        let mut tree = CellTree::from_significance(self.map, plane, rule, self.voids.as_ref());
+        tree.set_fine_borders(self.fine_borders);
+        tree
     }
 
     /// Triangulates a threshold partition (the triangulation step), every cell as two
@@ -266,11 +242,9 @@ impl<'a> Mesher<'a> {
         self.error_pyramid();
         let errors = self.errors.as_ref().expect("computed above");
         let (map, heights, voids) = (self.map, self.heights, self.voids.as_ref());
-        let fine = self.fine_borders;
         let test = |m: u32, i: usize, j: usize| {
             base_plane.is_some_and(|p| significant(map, p, rule, m, i, j))
                 || too_rough(errors, tolerance, m, i, j)
-                || fine.touch(heights.width, heights.height, m, i, j)
         };
         // Leaves take the cheapest shape within the tolerance; a leaf of the zerotree
         // base that is not within it splits by the test above.
@@ -284,6 +258,7 @@ impl<'a> Mesher<'a> {
         let (width, height) = (heights.width, heights.height);
         let levels = map.levels();
         let mut tree = CellTree::build(width, height, levels, voids, test);
+        tree.set_fine_borders(self.fine_borders);
         let mut scratch = Scratch::default();
         let mut triangles: Vec<[u32; 3]> = Vec::new();
         let mut splits = 0;
