@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 use wavemesh_codec::tiles::Window;
-use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster};
+use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
 
 use super::{TileMeshError, TileMeshOptions, TileTarget};
 use crate::lod::{decoded_plane, Surface};
@@ -63,7 +63,8 @@ pub(super) struct MeshedTile {
     pub glb: Option<Vec<u8>>,
 }
 
-/// Meshes the tile at `spot` out of `band` (the whole DEM's rows from `spot.window.y`).
+/// Meshes the tile at `spot` out of `band` (the whole DEM's rows from `spot.window.y`);
+/// `cell_total` is the DEM's number of grid cells (for a budget's share).
 pub(super) fn mesh_tile(
     band: &Raster,
     spot: TileSpot,
@@ -72,35 +73,12 @@ pub(super) fn mesh_tile(
 ) -> Result<MeshedTile, TileMeshError> {
     let w = spot.window;
     let raster = band.crop(w.x, 0, w.width, w.height);
-    let mut summary = TileMeshSummary {
-        row: spot.row,
-        column: spot.column,
-        file: None,
-        x: w.x,
-        y: w.y,
-        width: w.width,
-        height: w.height,
-        triangles: 0,
-        vertices: 0,
-        max_error: 0.0,
-        min: [0.0; 3],
-        max: [0.0; 3],
-    };
+    let mut summary = TileMeshSummary::empty(spot);
     if !has_valid_cell(&raster) {
         return Ok(MeshedTile { summary, glb: None });
     }
-    let encoded = encode(
-        &raster,
-        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
-    )
-    .map_err(TileMeshError::Encode)?;
+    let decoded = code_losslessly(&raster)?;
     drop(raster);
-    let decode_options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
-    let decoded = decode(&encoded.bytes, &decode_options).map_err(TileMeshError::Decode)?;
-    drop(encoded);
     let map = decoded
         .significance
         .as_ref()
@@ -113,17 +91,7 @@ pub(super) fn mesh_tile(
         .with_fine_borders(spot.shared)
         .build(target, options.rule, base_plane)
         .mesh;
-    let error = mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid);
-    if let TileTarget::Tolerance { error: bound, .. } = options.target {
-        if error.max_error > bound {
-            return Err(TileMeshError::BoundMissed {
-                row: spot.row,
-                column: spot.column,
-                error: error.max_error,
-                bound,
-            });
-        }
-    }
+    summary.max_error = checked_error(&mesh, &surface, options.target, spot)?;
     let positions = placed_positions(&mesh, &surface.heights, &options.placement, w);
     (summary.min, summary.max) = extent(&positions);
     let glb = encode_glb_about(
@@ -136,11 +104,65 @@ pub(super) fn mesh_tile(
     summary.file = Some(tile_file_name(spot.row, spot.column));
     summary.triangles = mesh.triangles.len();
     summary.vertices = mesh.vertices.len();
-    summary.max_error = error.max_error;
     Ok(MeshedTile {
         summary,
         glb: Some(glb),
     })
+}
+
+impl TileMeshSummary {
+    /// The summary of the tile at `spot` before it is meshed: no file, no triangles.
+    fn empty(spot: TileSpot) -> TileMeshSummary {
+        let w = spot.window;
+        TileMeshSummary {
+            row: spot.row,
+            column: spot.column,
+            file: None,
+            x: w.x,
+            y: w.y,
+            width: w.width,
+            height: w.height,
+            triangles: 0,
+            vertices: 0,
+            max_error: 0.0,
+            min: [0.0; 3],
+            max: [0.0; 3],
+        }
+    }
+}
+
+/// `raster` coded losslessly as one stream and decoded with its significance map: the
+/// heights and the partition the zerotree mesher takes.
+fn code_losslessly(raster: &Raster) -> Result<Decoded, TileMeshError> {
+    let options = EncodeOptions::new(Quality::Lossless, None).single_stream();
+    let encoded = encode(raster, &options).map_err(TileMeshError::Encode)?;
+    let decode_options = DecodeOptions {
+        significance_map: true,
+        ..DecodeOptions::default()
+    };
+    decode(&encoded.bytes, &decode_options).map_err(TileMeshError::Decode)
+}
+
+/// The largest distance of a covered valid sample of `surface` from `mesh`, checked
+/// against the tolerance when `target` is one.
+fn checked_error(
+    mesh: &GridMesh,
+    surface: &Surface,
+    target: TileTarget,
+    spot: TileSpot,
+) -> Result<f64, TileMeshError> {
+    let error = mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid).max_error;
+    match target {
+        TileTarget::Tolerance { error: bound, .. } if error > bound => {
+            Err(TileMeshError::BoundMissed {
+                row: spot.row,
+                column: spot.column,
+                error,
+                bound,
+            })
+        }
+        _ => Ok(error),
+    }
 }
 
 /// The file name of tile (`row`, `column`).
