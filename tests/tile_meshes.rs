@@ -406,6 +406,7 @@ fn bad_input_is_one_line_and_leaves_nothing() {
     assert_eq!(std::fs::read(&file).unwrap(), b"keep");
     assert!(run(tiled(&out, &["--tile", "0"]), 2).contains("--tile"));
     run(tiled(&out, &["--bpp", "1"]), 2);
+    run(tiled(Path::new("-"), &[]), 2);
     assert!(!out.exists());
     // All nodata: nothing to mesh, and no folder made.
     let voids = dir.path().join("voids.asc");

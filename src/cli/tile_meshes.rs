@@ -76,6 +76,11 @@ pub fn mesh_tiles(
     input_args: &InputArgs,
     json: bool,
 ) -> Result<(), CliError> {
+    if output.as_os_str() == "-" {
+        return Err(CliError::Usage(
+            "--tile-meshes writes a folder, not standard output (-)".into(),
+        ));
+    }
     if tiling.tile == 0 {
         return Err(CliError::Usage(
             "--tile must be at least 1 with --tile-meshes".into(),
