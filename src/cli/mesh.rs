@@ -11,11 +11,15 @@ use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
 use wavemesh::mesh::frame::FrameError;
 use wavemesh::mesh::rasterise::{mesh_error, MeshError};
+use wavemesh::mesh::tiled::TileTarget;
 use wavemesh::mesh::MeshTarget;
-use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
+use wavemesh_codec::{
+    decode, encode, DecodeOptions, Decoded, EncodeOptions, Georef, Quality, Raster,
+};
 
 use super::coding::SCHEMA_VERSION;
 use super::meshers::{mesh_direct, MethodArg};
+use super::tile_meshes::{mesh_tiles, TilingArgs};
 use super::{timed, with_codec_progress, with_progress, CliError, InputArgs, WaveletArg, Workload};
 use wavemesh::meshers;
 
@@ -173,12 +177,44 @@ impl MeshOptions {
 
     /// Where the samples of `raster` go in the mesh file.
     fn placement(&self, raster: &Raster) -> Result<Placement, FrameError> {
-        let georef = raster.georef.as_ref();
+        self.placement_for(raster.georef.as_ref(), raster.width, raster.height)
+    }
+
+    /// Where the samples of a `width × height` DEM placed by `georef` go.
+    pub(super) fn placement_for(
+        &self,
+        georef: Option<&Georef>,
+        width: usize,
+        height: usize,
+    ) -> Result<Placement, FrameError> {
         Ok(match self.xy {
             XyArg::Pixel => Placement::pixel(self.z_scale),
             XyArg::Degrees => Placement::crs_units(georef, self.z_scale),
-            XyArg::Geo => Placement::metric(georef, raster.width, raster.height, self.z_scale)?,
+            XyArg::Geo => Placement::metric(georef, width, height, self.z_scale)?,
         })
+    }
+
+    /// What every tile of `--tile-meshes` meets, and the split rule.
+    pub(super) fn tile_target(&self) -> Result<(TileTarget, SplitRule), CliError> {
+        let (target, base_plane) = self.target(0)?;
+        let tile_target = match target {
+            MeshTarget::Plane(plane) => TileTarget::Zerotree {
+                plane: self.threshold.map(|_| plane),
+            },
+            MeshTarget::Tolerance(error) => TileTarget::Tolerance {
+                error,
+                plane: base_plane,
+            },
+            MeshTarget::Triangles(total) => TileTarget::Triangles {
+                total,
+                by_threshold: true,
+            },
+            MeshTarget::TrianglesByTolerance(total) => TileTarget::Triangles {
+                total,
+                by_threshold: false,
+            },
+        };
+        Ok((tile_target, self.rule()))
     }
 
     /// Checks that `raster` (read from `input`) can be meshed as asked: it has a 2 × 2
@@ -423,6 +459,8 @@ pub struct MeshArgs {
     json: bool,
     #[command(flatten)]
     input_args: InputArgs,
+    #[command(flatten)]
+    tiling: TilingArgs,
 }
 
 #[derive(Serialize)]
@@ -445,6 +483,15 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         return Err(CliError::Usage(
             "the output would overwrite the input".into(),
         ));
+    }
+    if args.tiling.enabled() {
+        if args.bpp.is_some() {
+            return Err(CliError::Usage(
+                "--tile-meshes meshes each tile's lossless stream: --bpp does not apply".into(),
+            ));
+        }
+        let paths = (args.input.as_path(), args.output.as_path());
+        return mesh_tiles(paths, &args.mesh, &args.tiling, &args.input_args, args.json);
     }
     let raster = args.input_args.read_to_encode(&args.input)?;
     args.mesh.check(

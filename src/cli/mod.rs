@@ -7,6 +7,7 @@ mod meshers;
 mod metadata_report;
 mod report;
 mod synth;
+mod tile_meshes;
 mod tiled_coding;
 mod tiled_info;
 mod varres;

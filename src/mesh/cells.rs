@@ -15,6 +15,7 @@ use wavemesh_codec::significance::nodes_along;
 use wavemesh_codec::SignificanceMap;
 
 use super::pyramid::{node_bounds, ErrorPyramid, VoidPyramid};
+use super::FineBorders;
 
 /// Which coefficients decide that a node splits at a threshold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -114,6 +115,8 @@ pub struct CellTree {
     midpoints: Vec<(BitVec<u64, Lsb0>, BitVec<u64, Lsb0>)>,
     /// The leaves, void level-0 cells excluded, in depth-first order.
     leaves: Vec<Cell>,
+    /// Sides of the grid along which every sample is a vertex.
+    fine_borders: FineBorders,
 }
 
 impl CellTree {
@@ -141,6 +144,7 @@ impl CellTree {
             split,
             midpoints: Vec::new(),
             leaves: Vec::new(),
+            fine_borders: FineBorders::default(),
         };
         tree.grow(voids, test);
         tree
@@ -251,6 +255,24 @@ impl CellTree {
     /// depth-first order, once the caller is done): the two buffers of a ping-pong update.
     pub fn swap_leaves(&mut self, leaves: &mut Vec<Cell>) {
         std::mem::swap(&mut self.leaves, leaves);
+    }
+
+    /// Makes every sample along `sides` of the grid a vertex of the triangulation: the
+    /// cells along them get those samples on their sides, as if smaller cells lay across.
+    pub fn set_fine_borders(&mut self, sides: FineBorders) {
+        self.fine_borders = sides;
+    }
+
+    /// Whether `side` of `cell` lies on a fine border (see [`CellTree::set_fine_borders`]).
+    pub fn on_fine_border(&self, cell: Cell, side: Side) -> bool {
+        let (x0, y0, x1, y1) = self.bounds(cell);
+        let fine = self.fine_borders;
+        match side {
+            Side::Top => fine.top && y0 == 0,
+            Side::Right => fine.right && x1 == self.width - 1,
+            Side::Bottom => fine.bottom && y1 == self.height - 1,
+            Side::Left => fine.left && x0 == 0,
+        }
     }
 
     /// What lies across `side` of leaf `cell`.

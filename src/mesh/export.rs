@@ -367,7 +367,7 @@ pub fn encode_mesh(
     let positions = positions(mesh, heights, placement, name)?;
     let triangles = oriented_triangles(mesh, placement, name)?;
     match format {
-        MeshFormat::Glb => encode_glb(&positions, &triangles, placement.frame_record()),
+        MeshFormat::Glb => encode_glb(&positions, &triangles, placement.frame_record(), None),
         MeshFormat::Obj => Ok(encode_obj(&positions, &triangles, &placement.frame_text())),
         MeshFormat::Ply => encode_ply(&positions, &triangles, &placement.frame_text()),
     }
@@ -385,6 +385,24 @@ pub fn write_mesh(
     let bytes = encode_mesh(mesh, heights, placement, format)?;
     write_atomic(path, |w| w.write_all(&bytes))?;
     Ok(())
+}
+
+/// Binary glTF of a mesh whose vertices are already placed (`positions`: `[x, y, z]` in
+/// `placement`'s frame, flattened; `triangles` counter-clockwise in the grid frame), with
+/// x/y stored relative to `centre` instead of the mesh's own centre: pieces of one DEM
+/// written with one centre have bit-identical coordinates where they meet.
+pub fn encode_glb_about(
+    positions: &[f64],
+    triangles: &[[u32; 3]],
+    placement: &Placement,
+    centre: [f64; 2],
+) -> Result<Vec<u8>, ExportError> {
+    let flip = placement.flips_winding();
+    let oriented: Vec<[u32; 3]> = triangles
+        .iter()
+        .map(|t| if flip { [t[0], t[2], t[1]] } else { *t })
+        .collect();
+    encode_glb(positions, &oriented, placement.frame_record(), Some(centre))
 }
 
 /// The mesh as the files hold it, for callers that want arrays instead of a file (the
@@ -658,17 +676,23 @@ struct GltfPositions {
     max: [f32; 3],
 }
 
-/// Moves `positions` to glTF's frame, checking that everything fits an `f32`.
-fn gltf_positions(positions: &[f64]) -> Result<GltfPositions, ExportError> {
+/// Moves `positions` to glTF's frame around `centre` (default: the centre of their x/y
+/// bounding box), checking that everything fits an `f32`.
+fn gltf_positions(
+    positions: &[f64],
+    centre: Option<[f64; 2]>,
+) -> Result<GltfPositions, ExportError> {
     const FORMAT: &str = "glb";
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in positions.chunks_exact(3) {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
+    let centre = centre.unwrap_or_else(|| {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in positions.chunks_exact(3) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
         }
-    }
-    let centre = [mid(lo[0], hi[0]), mid(lo[1], hi[1])];
+        [mid(lo[0], hi[0]), mid(lo[1], hi[1])]
+    });
     // Readers take the node translation as f32 too.
     if !centre.iter().all(|&c| (c as f32).is_finite()) {
         return Err(ExportError::NonFinitePosition {
@@ -708,11 +732,13 @@ fn gltf_positions(positions: &[f64]) -> Result<GltfPositions, ExportError> {
 }
 
 /// Binary glTF 2.0 with one mesh of one indexed triangle primitive (POSITION, NORMAL)
-/// and a matte material; `frame` goes into the node's `extras`.
+/// and a matte material; `frame` goes into the node's `extras`; x/y are stored relative
+/// to `centre` (default: the middle of the mesh).
 fn encode_glb(
     positions: &[f64],
     triangles: &[[u32; 3]],
     frame: Value,
+    centre: Option<[f64; 2]>,
 ) -> Result<Vec<u8>, ExportError> {
     if triangles.is_empty() {
         let doc = json!({
@@ -724,7 +750,7 @@ fn encode_glb(
         return glb_container(&doc, &[]);
     }
     let layout = GlbLayout::new(vertex_count(positions), triangles.len())?;
-    let gltf = gltf_positions(positions)?;
+    let gltf = gltf_positions(positions, centre)?;
     let normals = vertex_normals(&gltf.local, triangles);
 
     let mut bin = Vec::new();

@@ -14,6 +14,7 @@ pub mod greedy;
 pub mod pyramid;
 pub mod qem;
 pub mod rasterise;
+pub mod tiled;
 pub mod triangulate;
 pub mod varres;
 
@@ -62,6 +63,23 @@ pub struct Mesher<'a> {
     heights: Heights<'a>,
     voids: Option<VoidPyramid>,
     errors: Option<ErrorPyramid>,
+    fine_borders: FineBorders,
+}
+
+/// Sides of the grid along which every sample is a vertex: the cells along them are
+/// triangulated with every sample of their side on it, as if single grid cells lay
+/// across. Two meshes of grids that share such a side then have the same vertices and
+/// edges along it, whatever their interiors (tiles of one DEM).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FineBorders {
+    /// The first row.
+    pub top: bool,
+    /// The last column.
+    pub right: bool,
+    /// The last row.
+    pub bottom: bool,
+    /// The first column.
+    pub left: bool,
 }
 
 /// What a mesh is asked to meet.
@@ -111,6 +129,15 @@ impl<'a> Mesher<'a> {
             heights,
             voids,
             errors: None,
+            fine_borders: FineBorders::default(),
+        }
+    }
+
+    /// The same mesher, with every sample along `sides` a vertex of every mesh it builds.
+    pub fn with_fine_borders(self, sides: FineBorders) -> Mesher<'a> {
+        Mesher {
+            fine_borders: sides,
+            ..self
         }
     }
 
@@ -128,7 +155,9 @@ impl<'a> Mesher<'a> {
 
     /// The cell partition at threshold `2^plane` under `rule` (the search step).
     pub fn cells_at_plane(&self, plane: u32, rule: SplitRule) -> CellTree {
-        CellTree::from_significance(self.map, plane, rule, self.voids.as_ref())
+        let mut tree = CellTree::from_significance(self.map, plane, rule, self.voids.as_ref());
+        tree.set_fine_borders(self.fine_borders);
+        tree
     }
 
     /// Triangulates a threshold partition (the triangulation step), every cell as two
@@ -230,6 +259,7 @@ impl<'a> Mesher<'a> {
         let (width, height) = (heights.width, heights.height);
         let levels = map.levels();
         let mut tree = CellTree::build(width, height, levels, voids, test);
+        tree.set_fine_borders(self.fine_borders);
         let mut scratch = Scratch::default();
         let mut triangles: Vec<[u32; 3]> = Vec::new();
         let mut splits = 0;

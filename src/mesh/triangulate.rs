@@ -188,9 +188,17 @@ fn fan_half(ab: &[u32], bc: &[u32], emit: &mut impl FnMut([u32; 3])) {
 }
 
 /// Appends to `points` the coordinates (along `side`, increasing) of the vertices strictly
-/// inside `side` of `cell`: those the smaller cells across it put there, or its marked
-/// midpoint.
+/// inside `side` of `cell`: every sample on a fine border, else those the smaller cells
+/// across it put there, or its marked midpoint.
 fn neighbour_points(tree: &CellTree, cell: Cell, side: Side, points: &mut Vec<usize>) {
+    if tree.on_fine_border(cell, side) {
+        let (x0, y0, x1, y1) = tree.bounds(cell);
+        match side {
+            Side::Top | Side::Bottom => points.extend(x0 + 1..x1),
+            Side::Left | Side::Right => points.extend(y0 + 1..y1),
+        }
+        return;
+    }
     if let Some((ni, nj)) = tree.neighbour(cell, side) {
         if tree.is_split(cell.level, ni, nj) {
             collect_side(tree, cell.level, ni, nj, side.opposite(), points);
