@@ -7,7 +7,6 @@ use serde::Serialize;
 use wavemesh::mesh::tiled::{
     write_tile_meshes, TileMeshError, TileMeshOptions, TiledMeshes, INDEX_FILE,
 };
-use wavemesh_codec::TileGrid;
 
 use super::coding::SCHEMA_VERSION;
 use super::mesh::MeshOptions;
@@ -102,12 +101,7 @@ pub fn mesh_tiles(
     options.rule = rule;
     options.threads = threads;
     let samples = (info.width * info.height) as u64;
-    let grid = TileGrid::balanced(info.width, info.height, tiling.tile).unwrap_or(TileGrid {
-        width: info.width,
-        height: info.height,
-        tile_width: info.width,
-        tile_height: info.height,
-    });
+    let grid = wavemesh::mesh::tiled::mesh_grid(info.width, info.height, tiling.tile);
     let bar = TileRowBar::new(
         "meshing",
         &grid,

@@ -202,6 +202,18 @@ struct Index<'a> {
     meshes: &'a TiledMeshes,
 }
 
+/// The tiles of a `width × height` DEM meshed in tiles of at most `tile` a side: those of
+/// a tiled `.ezw` file (as equal as the raster allows), one tile when it fits in one.
+pub fn mesh_grid(width: usize, height: usize, tile: usize) -> TileGrid {
+    TileGrid::balanced(width, height, tile).unwrap_or(TileGrid {
+        width,
+        height,
+        tile_width: width,
+        tile_height: height,
+        overlap: 0,
+    })
+}
+
 /// Meshes the DEM `bands` reads into `folder` (created if missing), one glb per tile,
 /// then writes the index. `rows_done(k)` is called after each tile row.
 pub fn write_tile_meshes(
@@ -214,12 +226,7 @@ pub fn write_tile_meshes(
         return Err(TileMeshError::BadTile(options.tile));
     }
     let info = bands.info().clone();
-    let grid = TileGrid::balanced(info.width, info.height, options.tile).unwrap_or(TileGrid {
-        width: info.width,
-        height: info.height,
-        tile_width: info.width,
-        tile_height: info.height,
-    });
+    let grid = mesh_grid(info.width, info.height, options.tile);
     let created = prepare_folder(folder)?;
     let result = mesh_rows(bands, &grid, folder, options, rows_done).and_then(|meshes| {
         write_index(folder, options, &meshes)?;
