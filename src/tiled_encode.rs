@@ -11,7 +11,7 @@ use thiserror::Error;
 use wavemesh_codec::tiles::{
     cut_to_budget, encode_band, tiled_head, EncodedTile, RasterInfo, TileSummary,
 };
-use wavemesh_codec::{CodecError, EncodeOptions, Raster, Samples, TileGrid};
+use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid};
 
 use crate::dem::{DemError, RowBands};
 
@@ -172,21 +172,11 @@ fn read_band(
         return bands.read_rows(rows.y, rows.height);
     }
     let (band, offset) = previous.expect("a previous band when rows are shared");
-    let mut out = band.crop(0, offset, grid.width, shared);
-    if rows.y + shared < end {
-        let fresh = bands.read_rows(rows.y + shared, end - rows.y - shared)?;
-        let mut joined = Raster::new(
-            grid.width,
-            rows.height,
-            Samples::filled(band.sample_type(), 0.0, grid.width * rows.height),
-        )
-        .expect("samples sized to the band");
-        joined.nodata = band.nodata;
-        joined.paste(0, 0, &out);
-        joined.paste(0, shared, &fresh);
-        out = joined;
+    let above = band.crop(0, offset, grid.width, shared);
+    if rows.y + shared == end {
+        return Ok(above);
     }
-    Ok(out)
+    bands.read_rows_below(&above, rows.y + shared, end - rows.y - shared)
 }
 
 /// Writes the header and index, then the spooled tiles.

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use wavemesh_codec::{Raster, SampleType, Samples};
 
-use super::tiff_chunks::ChunkReader;
+use super::tiff_chunks::{bytes, bytes_mut, zeroed_samples, ChunkReader};
 use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, SourceFile};
 
 /// Everything [`read_dem`] puts in a [`Raster`] besides the samples: the codec's
@@ -93,6 +93,47 @@ impl RowBands {
             BandSource::Whole(samples) => slice(samples, width * y0, width * rows),
         };
         let mut band = super::make_raster(width, rows, samples)?;
+        band.nodata = self.info.nodata;
+        Ok(band)
+    }
+
+    /// `above` (rows of the raster just above `y0`, e.g. kept from the previous band)
+    /// with rows `y0..y0 + rows` below it, as one raster: the band is allocated once, the
+    /// new rows read straight into it.
+    pub fn read_rows_below(
+        &mut self,
+        above: &Raster,
+        y0: usize,
+        rows: usize,
+    ) -> Result<Raster, DemError> {
+        let height = self.info.height;
+        if rows == 0 || y0.checked_add(rows).is_none_or(|end| end > height) {
+            return Err(DemError::RowsOutOfRange { y0, rows, height });
+        }
+        let width = self.info.width;
+        if above.width != width || above.sample_type() != self.info.sample_type {
+            return Err(DemError::InvalidRaster(format!(
+                "rows of {} {} samples above a band of {width} {} samples a row",
+                above.width,
+                above.sample_type().name(),
+                self.info.sample_type.name()
+            )));
+        }
+        self.check_band(above.height + rows)?;
+        let mut samples = zeroed_samples(self.info.sample_type, width * (above.height + rows));
+        let kept = bytes(&above.samples);
+        let (top, below) = bytes_mut(&mut samples).split_at_mut(kept.len());
+        top.copy_from_slice(kept);
+        match &mut self.source {
+            BandSource::Chunks(chunks) => chunks
+                .read_rows_into(y0, rows, below)
+                .map_err(|e| e.in_file(&self.path))?,
+            BandSource::Whole(all) => {
+                let row_bytes = width * self.info.sample_type.bytes();
+                below.copy_from_slice(&bytes(all)[y0 * row_bytes..(y0 + rows) * row_bytes]);
+            }
+        }
+        let mut band = super::make_raster(width, above.height + rows, samples)?;
         band.nodata = self.info.nodata;
         Ok(band)
     }

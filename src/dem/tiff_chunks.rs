@@ -119,13 +119,24 @@ impl<R: Read + Seek> ChunkReader<R> {
     /// Rows `y0..y0 + rows` (within the raster) as `width × rows` samples.
     pub(super) fn read_rows(&mut self, y0: usize, rows: usize) -> Result<Samples, DemError> {
         let mut band = zeroed_samples(self.sample_type, self.width * rows);
+        self.read_rows_into(y0, rows, bytes_mut(&mut band))?;
+        Ok(band)
+    }
+
+    /// Rows `y0..y0 + rows` (within the raster) into `band`, their bytes in native order.
+    pub(super) fn read_rows_into(
+        &mut self,
+        y0: usize,
+        rows: usize,
+        band: &mut [u8],
+    ) -> Result<(), DemError> {
         let row_bytes = self.width * self.sample_type.bytes();
         let end = y0 + rows;
         for chunk_row in y0 / self.chunk_height..end.div_ceil(self.chunk_height) {
             let top = chunk_row * self.chunk_height;
             let bottom = (top + self.chunk_height).min(self.height);
             let (from, to) = (top.max(y0), bottom.min(end));
-            let out = &mut bytes_mut(&mut band)[(from - y0) * row_bytes..(to - y0) * row_bytes];
+            let out = &mut band[(from - y0) * row_bytes..(to - y0) * row_bytes];
             if from == top && to == bottom {
                 self.decode_chunk_row(chunk_row, out)?;
             } else {
@@ -135,7 +146,7 @@ impl<R: Read + Seek> ChunkReader<R> {
                 );
             }
         }
-        Ok(band)
+        Ok(())
     }
 
     /// Chunk row `chunk_row`, from the cache or decoded into it (replacing what it held).
