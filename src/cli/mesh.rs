@@ -11,7 +11,7 @@ use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
 use wavemesh::mesh::frame::FrameError;
 use wavemesh::mesh::rasterise::{mesh_error, MeshError};
-use wavemesh::mesh::tiled::TileTarget;
+use wavemesh::mesh::tiled::{has_valid_cell, TileTarget};
 use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{
     decode, encode, DecodeOptions, Decoded, EncodeOptions, Georef, Quality, Raster,
@@ -232,21 +232,6 @@ impl MeshOptions {
             .map(|_| ())
             .map_err(|e| refuse(e.to_string()))
     }
-}
-
-/// Whether some 2 × 2 block of `raster` is all valid samples (the smallest cell the
-/// mesher triangulates; cells touching nodata are left out).
-pub(super) fn has_valid_cell(raster: &Raster) -> bool {
-    let w = raster.width;
-    (1..raster.height).any(|row| {
-        (1..w).any(|col| {
-            let top = (row - 1) * w + col;
-            let bottom = row * w + col;
-            [top - 1, top, bottom - 1, bottom]
-                .iter()
-                .all(|&i| raster.is_valid(i))
-        })
-    })
 }
 
 /// The mesh part of a JSON report.

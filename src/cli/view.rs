@@ -22,8 +22,8 @@ use wavemesh::view::ViewError;
 use wavemesh_codec::{decode, DecodeOptions, Decoded};
 
 use super::coding::SCHEMA_VERSION;
-use super::mesh::has_valid_cell;
 use super::{CliError, LimitArgs};
+use wavemesh::mesh::tiled::has_valid_cell;
 
 /// Which rule sets the per-region thresholds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
