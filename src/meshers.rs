@@ -15,9 +15,10 @@ use crate::lod::Surface;
 use crate::memory;
 use crate::mesh::cells::SplitRule;
 use crate::mesh::greedy::{greedy_mesh, GreedyError, GreedyTarget};
-use crate::mesh::qem::{qem_mesh, QemError, QemTarget};
+use crate::mesh::qem::grid::GridError;
+use crate::mesh::qem::{qem_mesh, QemTarget};
 use crate::mesh::rasterise::mesh_error;
-use crate::mesh::varres::{varres_mesh, VarresError, VarresTarget};
+use crate::mesh::varres::{varres_mesh, VarresTarget};
 use crate::mesh::{GridMesh, MeshTarget, Mesher};
 
 /// Passes of error-lowering flips after greedy insertion (more change little: measured
@@ -101,12 +102,9 @@ pub enum MeshersError {
     /// The greedy mesher refused the grid.
     #[error("{0}")]
     Greedy(#[from] GreedyError),
-    /// The QEM mesher refused the grid.
+    /// The QEM or variable-resolution mesher refused the grid.
     #[error("{0}")]
-    Qem(#[from] QemError),
-    /// The variable-resolution mesher refused the grid.
-    #[error("{0}")]
-    Varres(#[from] VarresError),
+    Grid(#[from] GridError),
     /// The zerotree mesher's encode or decode failed.
     #[error("{0}")]
     Codec(#[from] CodecError),

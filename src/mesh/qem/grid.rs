@@ -18,7 +18,51 @@ pub struct Grid<'a> {
     pub valid: &'a BitSlice<u64, Lsb0>,
 }
 
+/// Why a height grid cannot be meshed (by QEM or the variable-resolution model).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    /// Fewer than two samples along a side.
+    #[error("a {width}x{height} grid is too small to mesh (2x2 at least)")]
+    TooSmall {
+        /// Samples per row.
+        width: usize,
+        /// Rows.
+        height: usize,
+    },
+    /// The heights and validity do not match the grid's size.
+    #[error("{0} heights or validity flags for a grid of {1} samples")]
+    SizeMismatch(usize, usize),
+    /// A valid sample holds NaN or an infinity.
+    #[error("sample {0} is valid but not finite")]
+    NotFinite(usize),
+    /// A grid this large overflows the mesher's 32-bit indices.
+    #[error("{0} samples are more than the mesher's 32-bit indices hold")]
+    TooLarge(usize),
+}
+
 impl Grid<'_> {
+    /// Checks that the grid can be meshed: 2 × 2 samples at least, heights and validity
+    /// of its size, every valid height finite, fewer than `max_samples` samples.
+    pub fn check(&self, max_samples: usize) -> Result<(), GridError> {
+        let n = self.len();
+        if self.width < 2 || self.height < 2 {
+            return Err(GridError::TooSmall {
+                width: self.width,
+                height: self.height,
+            });
+        }
+        if self.heights.len() != n || self.valid.len() != n {
+            return Err(GridError::SizeMismatch(self.heights.len(), n));
+        }
+        if n >= max_samples {
+            return Err(GridError::TooLarge(n));
+        }
+        match (0..n).find(|&s| self.valid[s] && !self.heights[s].is_finite()) {
+            Some(s) => Err(GridError::NotFinite(s)),
+            None => Ok(()),
+        }
+    }
+
     /// Samples of the grid.
     pub fn len(&self) -> usize {
         self.width * self.height

@@ -39,27 +39,8 @@ pub enum QemTarget {
     MaxError(f64),
 }
 
-/// Why a QEM mesh cannot be built.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum QemError {
-    /// Fewer than two samples along a side.
-    #[error("a {width}x{height} grid is too small to mesh (2x2 at least)")]
-    TooSmall {
-        /// Samples per row.
-        width: usize,
-        /// Rows.
-        height: usize,
-    },
-    /// The heights and validity do not match the grid's size.
-    #[error("{0} heights or validity flags for a grid of {1} samples")]
-    SizeMismatch(usize, usize),
-    /// A valid sample holds NaN or an infinity.
-    #[error("sample {0} is valid but not finite")]
-    NotFinite(usize),
-    /// A grid this large overflows the 32-bit vertex indices.
-    #[error("{0} samples are more than 32-bit vertex indices hold")]
-    TooLarge(usize),
-}
+/// Why a QEM mesh cannot be built: the grid's problem.
+pub type QemError = grid::GridError;
 
 /// The simplified mesh and the compact form it came from.
 #[derive(Debug, Clone)]
@@ -120,23 +101,7 @@ pub fn qem_meshes_within(
 }
 
 fn check_grid(grid: &Grid) -> Result<(), QemError> {
-    let n = grid.len();
-    if grid.width < 2 || grid.height < 2 {
-        return Err(QemError::TooSmall {
-            width: grid.width,
-            height: grid.height,
-        });
-    }
-    if grid.heights.len() != n || grid.valid.len() != n {
-        return Err(QemError::SizeMismatch(grid.heights.len(), n));
-    }
-    if n >= u32::MAX as usize {
-        return Err(QemError::TooLarge(n));
-    }
-    match (0..n).find(|&s| grid.valid[s] && !grid.heights[s].is_finite()) {
-        Some(s) => Err(QemError::NotFinite(s)),
-        None => Ok(()),
-    }
+    grid.check(u32::MAX as usize)
 }
 
 /// The most triangles a surviving vertex may have around it: contractions that would

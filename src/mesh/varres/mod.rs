@@ -79,27 +79,8 @@ impl Default for VarresOptions {
     }
 }
 
-/// Why a variable-resolution model cannot be built.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum VarresError {
-    /// Fewer than two samples along a side.
-    #[error("a {width}x{height} grid is too small to mesh (2x2 at least)")]
-    TooSmall {
-        /// Samples per row.
-        width: usize,
-        /// Rows.
-        height: usize,
-    },
-    /// The heights and validity do not match the grid's size.
-    #[error("{0} heights or validity flags for a grid of {1} samples")]
-    SizeMismatch(usize, usize),
-    /// A valid sample holds NaN or an infinity.
-    #[error("sample {0} is valid but not finite")]
-    NotFinite(usize),
-    /// A grid this large overflows the 32-bit indices.
-    #[error("{0} samples are more than 32-bit indices hold")]
-    TooLarge(usize),
-}
+/// Why a variable-resolution model cannot be built: the grid's problem.
+pub type VarresError = crate::mesh::qem::grid::GridError;
 
 /// What a mesh out of the model meets.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -182,23 +163,7 @@ pub fn mesh_meeting(
 }
 
 fn check_grid(grid: &Grid) -> Result<(), VarresError> {
-    let n = grid.len();
-    if grid.width < 2 || grid.height < 2 {
-        return Err(VarresError::TooSmall {
-            width: grid.width,
-            height: grid.height,
-        });
-    }
-    if grid.heights.len() != n || grid.valid.len() != n {
-        return Err(VarresError::SizeMismatch(grid.heights.len(), n));
-    }
-    if n >= (u32::MAX / 4) as usize {
-        return Err(VarresError::TooLarge(n));
-    }
-    match (0..n).find(|&s| grid.valid[s] && !grid.heights[s].is_finite()) {
-        Some(s) => Err(VarresError::NotFinite(s)),
-        None => Ok(()),
-    }
+    grid.check((u32::MAX / 4) as usize)
 }
 
 /// The mean slope the default height scale gives a DEM: a typical terrain's, since
