@@ -742,13 +742,9 @@ struct PassReport {
     estimated_psnr_db: f64,
 }
 
+/// What `info` says of the raster a header describes, single stream or tiled.
 #[derive(Serialize)]
-struct InfoReport<'a> {
-    schema_version: u32,
-    command: &'static str,
-    input: &'a Path,
-    file_bytes: u64,
-    format_version: u16,
+pub(super) struct RasterReport {
     width: u32,
     height: u32,
     sample_type: &'static str,
@@ -756,11 +752,65 @@ struct InfoReport<'a> {
     levels: u8,
     mode: &'static str,
     max_error_bound: Option<f64>,
-    value_offset: f64,
-    value_step: f64,
     nodata: Option<String>,
     valid_min: f64,
     valid_max: f64,
+}
+
+impl RasterReport {
+    /// The raster `header` describes.
+    pub(super) fn of(header: &Header) -> RasterReport {
+        RasterReport {
+            width: header.width,
+            height: header.height,
+            sample_type: header.sample_type.name(),
+            wavelet: header.wavelet.name(),
+            levels: header.levels,
+            mode: header.mode.name(),
+            max_error_bound: header.max_error.is_finite().then_some(header.max_error),
+            nodata: header.nodata.map(|v| v.to_string()),
+            valid_min: header.valid_range.0,
+            valid_max: header.valid_range.1,
+        }
+    }
+
+    /// The text line of size, type, wavelet, levels and mode.
+    pub(super) fn print_kind(&self) {
+        println!(
+            "  {}x{} {}, {} wavelet, {} levels, {} mode{}",
+            self.width,
+            self.height,
+            self.sample_type,
+            self.wavelet,
+            self.levels,
+            self.mode,
+            self.max_error_bound
+                .map_or(String::new(), |e| format!(" (max error {e})"))
+        );
+    }
+
+    /// The valid range, as the text reports show it.
+    pub(super) fn values(&self) -> String {
+        format!("{} .. {}", self.valid_min, self.valid_max)
+    }
+
+    /// The nodata value, or "none".
+    pub(super) fn nodata(&self) -> &str {
+        self.nodata.as_deref().unwrap_or("none")
+    }
+}
+
+#[derive(Serialize)]
+struct InfoReport<'a> {
+    schema_version: u32,
+    command: &'static str,
+    input: &'a Path,
+    file_bytes: u64,
+    format_version: u16,
+    #[serde(flatten)]
+    raster: RasterReport,
+    value_offset: f64,
+    value_step: f64,
     header_bytes: u64,
     mask_bytes: u32,
     payload_start: u64,
@@ -826,18 +876,9 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         input: &args.input,
         file_bytes: data.len() as u64,
         format_version: u16::from_le_bytes([data[8], data[9]]),
-        width: header.width,
-        height: header.height,
-        sample_type: header.sample_type.name(),
-        wavelet: header.wavelet.name(),
-        levels: header.levels,
-        mode: header.mode.name(),
-        max_error_bound: header.max_error.is_finite().then_some(header.max_error),
+        raster: RasterReport::of(&header),
         value_offset: header.mapping.offset,
         value_step: header.mapping.step,
-        nodata: header.nodata.map(|v| v.to_string()),
-        valid_min: header.valid_range.0,
-        valid_max: header.valid_range.1,
         header_bytes: header_len as u64,
         mask_bytes: header.mask_len,
         payload_bytes: header.payload_len,
@@ -862,25 +903,13 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
         report.format_version,
         report.file_bytes
     );
+    report.raster.print_kind();
     println!(
-        "  {}x{} {}, {} wavelet, {} levels, {} mode{}",
-        report.width,
-        report.height,
-        report.sample_type,
-        report.wavelet,
-        report.levels,
-        report.mode,
-        report
-            .max_error_bound
-            .map_or(String::new(), |e| format!(" (max error {e})"))
-    );
-    println!(
-        "  values {} .. {}, sample = {} + {} * q, nodata {}",
-        report.valid_min,
-        report.valid_max,
+        "  values {}, sample = {} + {} * q, nodata {}",
+        report.raster.values(),
         report.value_offset,
         report.value_step,
-        report.nodata.as_deref().unwrap_or("none")
+        report.raster.nodata()
     );
     println!(
         "  header {} B, mask {} B, payload {} B{}, {} {} B{}{}",

@@ -8,7 +8,7 @@ use wavemesh::metrics;
 use wavemesh_codec::tiles::{allocate, TiledLayout};
 use wavemesh_codec::Mode;
 
-use super::coding::SCHEMA_VERSION;
+use super::coding::{RasterReport, SCHEMA_VERSION};
 use super::metadata_report::MetadataReport;
 use super::print_json;
 
@@ -27,16 +27,8 @@ struct TiledInfoReport<'a> {
     input: &'a Path,
     file_bytes: u64,
     format_version: u16,
-    width: u32,
-    height: u32,
-    sample_type: &'static str,
-    wavelet: &'static str,
-    levels: u8,
-    mode: &'static str,
-    max_error_bound: Option<f64>,
-    nodata: Option<String>,
-    valid_min: f64,
-    valid_max: f64,
+    #[serde(flatten)]
+    raster: RasterReport,
     header_bytes: u64,
     index_bytes: u64,
     tile_width: usize,
@@ -67,16 +59,7 @@ pub fn run(input: &Path, json: bool, layout: &TiledLayout, file_len: u64) {
         input,
         file_bytes: file_len,
         format_version: 2,
-        width: header.width,
-        height: header.height,
-        sample_type: header.sample_type.name(),
-        wavelet: header.wavelet.name(),
-        levels: header.levels,
-        mode: header.mode.name(),
-        max_error_bound: header.max_error.is_finite().then_some(header.max_error),
-        nodata: header.nodata.map(|v| v.to_string()),
-        valid_min: header.valid_range.0,
-        valid_max: header.valid_range.1,
+        raster: RasterReport::of(header),
         header_bytes: layout.header_len,
         index_bytes: layout.head_len() - layout.header_len,
         tile_width: layout.grid.tile_width,
@@ -143,22 +126,11 @@ fn print_text(r: &TiledInfoReport) {
         r.format_version,
         r.file_bytes
     );
+    r.raster.print_kind();
     println!(
-        "  {}x{} {}, {} wavelet, {} levels, {} mode{}",
-        r.width,
-        r.height,
-        r.sample_type,
-        r.wavelet,
-        r.levels,
-        r.mode,
-        r.max_error_bound
-            .map_or(String::new(), |e| format!(" (max error {e})"))
-    );
-    println!(
-        "  values {} .. {}, nodata {}{}",
-        r.valid_min,
-        r.valid_max,
-        r.nodata.as_deref().unwrap_or("none"),
+        "  values {}, nodata {}{}",
+        r.raster.values(),
+        r.raster.nodata(),
         if r.georeferenced {
             ", georeferenced"
         } else {
