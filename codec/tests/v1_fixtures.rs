@@ -4,25 +4,14 @@
 //! `fixtures/v1/NAME.ezw` is the file and `NAME.decoded` its decoded samples, raw
 //! little-endian (f32 as their bits).
 
-use std::path::PathBuf;
+use wavemesh_codec::{decode, DecodeOptions, Mode};
 
-use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
+mod support;
+
+use support::raw;
 
 fn fixture(name: &str) -> Vec<u8> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/v1")
-        .join(name);
-    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn raw(samples: &Samples) -> Vec<u8> {
-    match samples {
-        Samples::U8(v) => v.clone(),
-        Samples::U16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::I16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::I32(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::F32(v) => v.iter().flat_map(|x| x.to_bits().to_le_bytes()).collect(),
-    }
+    support::fixture("v1", name)
 }
 
 #[test]

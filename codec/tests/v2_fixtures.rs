@@ -6,26 +6,15 @@
 //! little-endian (f32 as their bits); `NAME.prefixN.decoded` is the decode of its first
 //! N bytes. The files are 32 × 24 synthetic terrain (a sine relief with noise).
 
-use std::path::PathBuf;
-
 use wavemesh_codec::ezw::Coder;
 use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
 
-fn fixture(name: &str) -> Vec<u8> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/v2")
-        .join(name);
-    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
+mod support;
 
-fn raw(samples: &Samples) -> Vec<u8> {
-    match samples {
-        Samples::U8(v) => v.clone(),
-        Samples::U16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::I16(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::I32(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-        Samples::F32(v) => v.iter().flat_map(|x| x.to_bits().to_le_bytes()).collect(),
-    }
+use support::raw;
+
+fn fixture(name: &str) -> Vec<u8> {
+    support::fixture("v2", name)
 }
 
 #[test]
