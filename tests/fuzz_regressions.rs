@@ -286,11 +286,44 @@ fn make_seeds() {
             encoded.header.mode
         );
         // The version-1 seeds (made before version 2) stay as they are.
-        write(
-            &corpus.join("decode_ezw"),
-            &format!("v2_{name}"),
-            &encoded.bytes,
-        );
+        for target in ["decode_ezw", "inspect_ezw"] {
+            write(&corpus.join(target), &format!("v2_{name}"), &encoded.bytes);
+        }
+    }
+    // Tiled files: small tiles (with their overlap), lossless, at a budget, with voids.
+    let tiled = |quality, budget| EncodeOptions {
+        tile_size: Some(8),
+        ..EncodeOptions::new(quality, budget)
+    };
+    let tiled_streams: Vec<(&str, &Raster, EncodeOptions)> = vec![
+        (
+            "tiled_i16_lossless.ezw",
+            &small,
+            tiled(Quality::Lossless, None),
+        ),
+        (
+            "tiled_i16_97_300_bytes.ezw",
+            &small,
+            tiled(Quality::Lossless, Some(300)),
+        ),
+        (
+            "tiled_i16_voids_max_error_3.ezw",
+            &with_voids,
+            tiled(Quality::MaxError(3.0), None),
+        ),
+        (
+            "tiled_f32_lossless.ezw",
+            &floats,
+            tiled(Quality::Lossless, None),
+        ),
+    ];
+    for (name, raster, options) in &tiled_streams {
+        let encoded = encode(raster, options).unwrap();
+        assert!(encoded.header.tiling.is_some(), "{name} is tiled");
+        println!("{name}: {} bytes", encoded.bytes.len());
+        for target in ["decode_ezw", "inspect_ezw"] {
+            write(&corpus.join(target), &format!("v2_{name}"), &encoded.bytes);
+        }
     }
 
     // decode_prefix and roundtrip: parameter block + sample bytes.

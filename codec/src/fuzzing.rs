@@ -9,12 +9,14 @@
 //! | harness | fuzz target | input |
 //! |---|---|---|
 //! | [`decode_arbitrary`] | `decode_ezw` | any bytes, read as a `.ezw` file |
+//! | [`inspect_arbitrary`] | `inspect_ezw` | any bytes, read as `info` and `verify` read a `.ezw` file |
 //! | [`decode_prefixes`] | `decode_prefix` | parameter bytes + a small raster (≤ 24 × 24) |
 //! | [`roundtrip`] | `roundtrip` | parameter bytes + a raster (≤ 64 × 64) |
 
 use crate::container::{self, Header, Mode, CHUNK};
 use crate::pipeline::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Limits, Quality};
 use crate::raster::{Raster, SampleType, Samples};
+use crate::tiles::{tile_lengths, TiledLayout};
 use crate::wavelet::{self, Wavelet};
 
 /// The decoder limits every harness uses: small enough that no input can make a fuzzer
@@ -126,6 +128,10 @@ pub fn repair_checksums(data: &[u8]) -> Option<Vec<u8>> {
     let crc = crc32fast::hash(&out[..header_len - 4]);
     out[header_len - 4..header_len].copy_from_slice(&crc.to_le_bytes());
     if let Ok((header, _)) = Header::parse(&out) {
+        if let Some(tiling) = header.tiling {
+            repair_tiled(&mut out, header_len, tiling.index_len);
+            return (out != data).then_some(out);
+        }
         let mut start = header_len as u64;
         for framed_total in [
             u64::from(header.mask_len),
@@ -144,6 +150,102 @@ pub fn repair_checksums(data: &[u8]) -> Option<Vec<u8>> {
         }
     }
     (out != data).then_some(out)
+}
+
+/// Repairs a tiled file's index (`index_len` framed bytes after the header), then every
+/// tile the repaired index locates, each as a file of its own.
+fn repair_tiled(out: &mut [u8], header_len: usize, index_len: u64) {
+    let index_end = (header_len as u64)
+        .saturating_add(index_len)
+        .min(out.len() as u64);
+    let total = usize::try_from(index_len).unwrap_or(usize::MAX);
+    reframe(&mut out[header_len..index_end as usize], total);
+    let Ok(Some(layout)) = TiledLayout::read(&mut &out[..], DECODE_FUZZ_LIMITS.max_memory) else {
+        return;
+    };
+    for (entry, &offset) in layout.entries.iter().zip(&layout.offsets) {
+        let start = (offset as usize).min(out.len());
+        let end = (offset.saturating_add(entry.len) as usize).min(out.len());
+        if let Some(tile) = repair_checksums(&out[start..end]) {
+            out[start..end].copy_from_slice(&tile);
+        }
+    }
+}
+
+/// Runs on arbitrary bytes what `wavemesh info` and `wavemesh verify` run; must never
+/// panic.
+///
+/// The bytes, and a copy with every checksum recomputed ([`repair_checksums`], tiled
+/// files' index and tiles included), are checked with [`container::verify`] and read as
+/// `info` reads them: a tiled file's header and index (index bytes bounded by
+/// [`DECODE_FUZZ_LIMITS`]), then the bytes each tile would get at budgets from nothing to
+/// the whole file; a single stream's header, then its nodata mask when the raster is
+/// within the limits.
+///
+/// Checks: a budget's allocation gives no tile more than its length and spends no more
+/// than the budget; a mask never counts more valid samples than the raster has.
+#[doc(hidden)]
+pub fn inspect_arbitrary(data: &[u8]) {
+    inspect(data);
+    if let Some(repaired) = repair_checksums(data) {
+        inspect(&repaired);
+    }
+}
+
+/// [`inspect_arbitrary`]'s checks on one copy of the bytes.
+fn inspect(data: &[u8]) {
+    let _ = container::verify(data);
+    match TiledLayout::read(&mut &data[..], DECODE_FUZZ_LIMITS.max_memory) {
+        Ok(Some(layout)) => inspect_tiled(&layout),
+        Ok(None) => inspect_single(data),
+        Err(_) => {}
+    }
+}
+
+/// The allocation `info` estimates rates from, at budgets across the file's length.
+fn inspect_tiled(layout: &TiledLayout) {
+    let file_len = layout.file_len();
+    for budget in [0, layout.head_len(), file_len / 8, file_len / 2, file_len] {
+        let Ok(lengths) = tile_lengths(layout, Some(budget)) else {
+            continue;
+        };
+        assert_eq!(lengths.len(), layout.entries.len(), "one length a tile");
+        for (length, entry) in lengths.iter().zip(&layout.entries) {
+            assert!(
+                length <= &entry.len,
+                "a tile given {length} of its {} bytes",
+                entry.len
+            );
+        }
+        let spent = layout.head_len() + lengths.iter().sum::<u64>();
+        if budget < file_len {
+            assert!(
+                spent <= budget,
+                "{spent} bytes spent of a budget of {budget}"
+            );
+        } else {
+            assert_eq!(
+                spent, file_len,
+                "a budget of the whole file reads all of it"
+            );
+        }
+    }
+}
+
+/// The valid-sample count `info` takes from a single stream's nodata mask.
+fn inspect_single(data: &[u8]) {
+    let Ok((header, header_len)) = Header::parse(data) else {
+        return;
+    };
+    let samples = header.sample_count();
+    if header.mask_len == 0 || samples > DECODE_FUZZ_LIMITS.max_samples {
+        return;
+    }
+    let framed = data.get(header_len..).unwrap_or(&[]);
+    let mask = container::unframe(framed, header.mask_len as usize);
+    let (width, count) = (header.width as usize, samples as usize);
+    let valid = crate::mask::decode_mask(&mask.bytes, width, count).count_ones();
+    assert!(valid <= count, "{valid} valid samples of {count}");
 }
 
 /// Rewrites the CRC of every complete chunk of a framed section of `framed_total` bytes

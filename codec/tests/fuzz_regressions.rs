@@ -7,7 +7,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::fuzzing::{decode_arbitrary, decode_prefixes, roundtrip};
+use wavemesh_codec::fuzzing::{decode_arbitrary, decode_prefixes, inspect_arbitrary, roundtrip};
 
 fn fuzz_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz")
@@ -54,6 +54,11 @@ fn replay(target: &str, run: fn(&[u8])) -> usize {
 #[test]
 fn replay_decode_ezw() {
     replay("decode_ezw", decode_arbitrary);
+}
+
+#[test]
+fn replay_inspect_ezw() {
+    replay("inspect_ezw", inspect_arbitrary);
 }
 
 #[test]
