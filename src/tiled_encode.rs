@@ -1,17 +1,18 @@
-//! Encoding a DEM larger than memory: read one tile row of samples at a time
-//! ([`RowBands`]), code its tiles on every core, and keep only their (compressed)
+//! Encoding a DEM larger than memory: read one block of samples at a time (a run of
+//! tiles of one tile row, [`RowBands`]), code its tiles on every core, and keep only their (compressed)
 //! streams, spooled to a temporary file; the header and index go first in the output,
 //! the tiles after them. The bytes are those of an in-memory encode of the same raster.
 
 use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
+use std::ops::Range;
 use std::path::Path;
 
 use thiserror::Error;
 use wavemesh_codec::tiles::{
-    cut_to_budget, encode_band, tiled_head, EncodedTile, RasterInfo, TileSummary,
+    cut_to_budget, encode_block, encode_tile, tiled_head, EncodedTile, RasterInfo, TileSummary,
 };
-use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid};
+use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid, Window};
 
 use crate::dem::{DemError, RowBands};
 
@@ -41,11 +42,53 @@ pub struct TiledEncoded {
     pub tiles: Vec<TileSummary>,
 }
 
+/// The command line's block width for [`encode_tiled`]: samples across a band of tiles
+/// read at once when the source reads columns cheaply (a tiled TIFF decodes only the
+/// tiles a window touches), so a band costs about this many columns however wide the
+/// raster.
+pub const BLOCK_WIDTH: usize = 8192;
+
+/// Tiles of one tile row coded from one band of samples.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Block {
+    /// The tile row.
+    row: usize,
+    /// Its tile columns.
+    columns: Range<usize>,
+}
+
+/// The blocks of `grid` in file order (row by row, left to right), each
+/// `per_block` tile columns wide (the last of a row narrower).
+fn blocks(grid: &TileGrid, per_block: usize) -> Vec<Block> {
+    let columns = grid.columns();
+    (0..grid.rows())
+        .flat_map(|row| {
+            (0..columns).step_by(per_block).map(move |c| Block {
+                row,
+                columns: c..(c + per_block).min(columns),
+            })
+        })
+        .collect()
+}
+
+/// Tile columns a block spans: about `block_width` samples when the source reads
+/// columns cheaply, else the whole row (a strip is decoded at full width anyway).
+fn block_columns(bands: &RowBands, grid: &TileGrid, block_width: usize) -> usize {
+    if bands.reads_columns() {
+        (block_width / grid.tile_width).clamp(1, grid.columns())
+    } else {
+        grid.columns()
+    }
+}
+
 /// Encodes the raster `bands` reads (described by `info`: its [`RowBands::info`],
-/// perhaps with metadata left out) as a
-/// tiled file on `grid` into `output` (written atomically), holding two tile rows of
-/// samples at a time: the one being coded and the next, read meanwhile (one after the
-/// other when `options.threads` is 1). Without a byte budget the
+/// perhaps with metadata left out) as a tiled file on `grid` into `output` (written
+/// atomically), holding two blocks of samples at a time: the one being coded and the
+/// next, read meanwhile (one after the other when `options.threads` is 1). A block is
+/// the coded samples of a run of tiles of one tile row, about `block_width` samples
+/// wide (at least a tile) when the source reads columns cheaply (a tiled TIFF), else
+/// the whole row, so memory does not grow with the raster's width. The bytes do not
+/// depend on `block_width`. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
 /// coded up to about four times its share of the budget) until the budget is shared.
 /// `rows_done(k)` is called after each tile row, `k` rows of [`TileGrid::rows`] done.
@@ -54,15 +97,18 @@ pub fn encode_tiled(
     info: &RasterInfo,
     grid: &TileGrid,
     options: &EncodeOptions,
+    block_width: usize,
     output: &Path,
     rows_done: &mut dyn FnMut(usize),
 ) -> Result<TiledEncoded, TiledEncodeError> {
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
-    let mut band = read_band(bands, grid, 0, None)?;
-    for row in 0..grid.rows() {
-        let (tiles, next) = code_and_read_next(&band, bands, grid, row, options);
+    let blocks = blocks(grid, block_columns(bands, grid, block_width));
+    let mut band = read_block(bands, grid, &blocks[0], None)?;
+    for (k, block) in blocks.iter().enumerate() {
+        let next = blocks.get(k + 1);
+        let (tiles, next_band) = code_and_read_next((block, &band), next, bands, grid, options);
         for tile in tiles? {
             summaries.push(tile.summary.clone());
             if options.budget_bytes.is_some() {
@@ -71,13 +117,19 @@ pub fn encode_tiled(
                 spool.write_all(&tile.bytes)?;
             }
         }
-        if let Some(next) = next? {
-            band = next;
+        if let Some(next_band) = next_band? {
+            band = next_band;
         }
-        rows_done(row + 1);
+        if block.columns.end == grid.columns() {
+            rows_done(block.row + 1);
+        }
     }
     if let Some(budget) = options.budget_bytes {
-        let cut = cut_to_budget(kept, info, grid, budget, &mut recoder(bands, grid, options))?;
+        let mut recode = |k: usize, cap: u64| -> Result<EncodedTile, TiledEncodeError> {
+            let part = bands.read_window(grid.coded(k))?;
+            Ok(encode_tile(&part, options, Some(cap))?)
+        };
+        let cut = cut_to_budget(kept, info, grid, budget, &mut recode)?;
         summaries = cut.iter().map(|t| t.summary.clone()).collect();
         for tile in &cut {
             spool.write_all(&tile.bytes)?;
@@ -94,89 +146,65 @@ pub fn encode_tiled(
     })
 }
 
-/// Codes tile `k` again, up to `cap` bytes, from its rows read again (the last tile
-/// row read is kept: the tiles to code again come in grid order).
-fn recoder<'a>(
-    bands: &'a mut RowBands,
-    grid: &'a TileGrid,
-    options: &'a EncodeOptions,
-) -> impl FnMut(usize, u64) -> Result<EncodedTile, TiledEncodeError> + 'a {
-    let mut rows: Option<(usize, Raster)> = None;
-    move |k, cap| {
-        let row = k / grid.columns();
-        if rows.as_ref().is_none_or(|(r, _)| *r != row) {
-            let band = grid.coded_rows(row);
-            rows = Some((row, bands.read_rows(band.y, band.height)?));
-        }
-        let (_, band) = rows.as_ref().expect("rows just read");
-        let w = grid.coded(k);
-        let top = grid.coded_rows(row).y;
-        let part = band.crop(w.x, w.y - top, w.width, w.height);
-        Ok(wavemesh_codec::tiles::encode_tile(
-            &part,
-            options,
-            Some(cap),
-        )?)
-    }
-}
-
-/// Codes the tiles of `band` (tile row `row`) and reads the next band: at the same time
-/// on two threads, unless `options` asks for one thread, when the read follows the coding.
+/// Codes the tiles of `block` from `band` and reads the `next` block's band: at the
+/// same time on two threads, unless `options` asks for one thread, when the read follows
+/// the coding.
 fn code_and_read_next(
-    band: &Raster,
+    (block, band): (&Block, &Raster),
+    next: Option<&Block>,
     bands: &mut RowBands,
     grid: &TileGrid,
-    row: usize,
     options: &EncodeOptions,
 ) -> (
     Result<Vec<EncodedTile>, CodecError>,
     Result<Option<Raster>, DemError>,
 ) {
     let read_next = |bands: &mut RowBands| {
-        (row + 1 < grid.rows())
-            .then(|| read_band(bands, grid, row + 1, Some(band)))
+        next.map(|next| read_block(bands, grid, next, Some((block, band))))
             .transpose()
     };
+    let code = || encode_block(band, grid, block.row, block.columns.clone(), options);
     if options.threads == 1 {
-        let tiles = encode_band(band, grid, row, options);
+        let tiles = code();
         return (tiles, read_next(bands));
     }
     std::thread::scope(|scope| {
         let reader = scope.spawn(|| read_next(bands));
-        let tiles = encode_band(band, grid, row, options);
+        let tiles = code();
         let next = reader.join().expect("the band reader does not panic");
         (tiles, next)
     })
 }
 
-/// The rows the streams of tile row `row` code (its own and the overlap), with those it
-/// shares with `previous` (the band of row `row - 1`) taken from it, so every row of the
-/// DEM is read once.
-fn read_band(
+/// The samples the streams of `block` code (its tiles and their overlap), with the rows
+/// it shares with `previous` taken from it when that is the block just above (blocks as
+/// wide as the raster), so every row of the DEM is read once.
+fn read_block(
     bands: &mut RowBands,
     grid: &TileGrid,
-    row: usize,
-    previous: Option<&Raster>,
+    block: &Block,
+    previous: Option<(&Block, &Raster)>,
 ) -> Result<Raster, DemError> {
-    let rows = grid.coded_rows(row);
-    let end = rows.y + rows.height;
-    let (shared, previous) = match previous {
-        Some(band) if row > 0 => {
-            let from = grid.coded_rows(row - 1);
-            let shared = (from.y + from.height).saturating_sub(rows.y);
-            (shared, Some((band, rows.y - from.y)))
-        }
-        _ => (0, None),
+    let window = grid.coded_block(block.row, block.columns.clone());
+    let above = previous.filter(|(p, _)| p.row + 1 == block.row && p.columns == block.columns);
+    let Some((above, band)) = above else {
+        return bands.read_window(window);
     };
+    let from = grid.coded_block(above.row, above.columns.clone());
+    let shared = (from.y + from.height).saturating_sub(window.y);
     if shared == 0 {
-        return bands.read_rows(rows.y, rows.height);
+        return bands.read_window(window);
     }
-    let (band, offset) = previous.expect("a previous band when rows are shared");
-    let above = band.crop(0, offset, grid.width, shared);
-    if rows.y + shared == end {
-        return Ok(above);
+    let kept = band.crop(0, window.y - from.y, window.width, shared);
+    if shared == window.height {
+        return Ok(kept);
     }
-    bands.read_rows_below(&above, rows.y + shared, end - rows.y - shared)
+    let below = Window {
+        y: window.y + shared,
+        height: window.height - shared,
+        ..window
+    };
+    bands.read_window_below(&kept, below)
 }
 
 /// Writes the header and index, then the spooled tiles.

@@ -279,3 +279,32 @@ fn a_4096_square_encode_holds_a_row_of_tiles_not_the_raster() {
         "peak heap {peak} for a {raster}-byte raster"
     );
 }
+
+#[test]
+fn encode_memory_does_not_grow_with_the_raster_width() {
+    let dir = scratch("cli-tiles");
+    let peak = |width: u32| {
+        let tif = dir.path().join(format!("tiled-{width}.tif"));
+        let size = format!("{width}x600");
+        json(&["synth", s(&tif), "--size", &size, "--tile", "512", "--json"]);
+        let ezw = dir.path().join("wide.ezw");
+        let report = json(&["encode", s(&tif), "-o", s(&ezw), "--json"]);
+        std::fs::remove_file(&tif).unwrap();
+        report["encode_peak_heap_bytes"].as_u64().unwrap()
+    };
+    // A tiled GeoTIFF, one tile row of 1024-sample tiles read in blocks of 8 tiles (the
+    // next read while the current one is coded): the wider raster has four blocks a row
+    // where the narrower has two, and the same peak.
+    let (narrow, wide) = (peak(16384), peak(32768));
+    assert!(
+        wide < narrow + narrow / 8,
+        "peak heap {wide} at 32768 samples across against {narrow} at 16384"
+    );
+    // Full-width bands (the tile row and its overlap, this one and the next) alone
+    // would take more.
+    let two_rows = 2 * 32768 * 604 * 2;
+    assert!(
+        wide < two_rows,
+        "peak heap {wide}, two full-width bands {two_rows}"
+    );
+}

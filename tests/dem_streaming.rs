@@ -12,7 +12,10 @@ use std::process::Command;
 use wavemesh::dem::TiledGeoTiffWriter;
 use wavemesh::dem::{read_dem, write_dem, DemError, DemInfo, ReadOptions, RowBands};
 use wavemesh::synth::{write_geotiff, write_tiled_geotiff, FractalTerrain};
-use wavemesh_codec::{Georef, Metadata, MetadataItem, Raster, Samples};
+use wavemesh::tiled_encode::encode_tiled;
+use wavemesh_codec::{
+    EncodeOptions, Georef, Metadata, MetadataItem, Quality, Raster, Samples, TileGrid, Window,
+};
 
 /// Every sample as its bit pattern, so NaN voids compare equal to themselves.
 fn bits(samples: &Samples) -> Vec<u32> {
@@ -301,6 +304,145 @@ fn bands_equal_read_dem_on_synthetic_strips_and_tiles_of_odd_sizes() {
 }
 
 #[test]
+fn windows_equal_crops_of_read_dem_on_strips_and_tiles() {
+    let scratch = support::scratch("dem_streaming");
+    let terrain = FractalTerrain::new(12);
+    let (width, height) = (333u32, 250u32);
+    let strips = scratch.path().join("strips.tif");
+    let tiles = scratch.path().join("tiles.tif");
+    write_geotiff(&strips, width, height, &terrain).unwrap();
+    write_tiled_geotiff(&tiles, width, height, &terrain, 48).unwrap();
+    let reference = read_dem(&strips, &ReadOptions::default()).unwrap();
+    // Inside one tile, across tile edges, on the raster's edges, one sample, whole rows.
+    let windows = [
+        (5, 7, 20, 30),
+        (40, 40, 60, 17),
+        (300, 200, 33, 50),
+        (0, 0, 333, 250),
+        (332, 249, 1, 1),
+        (0, 100, 333, 3),
+        (47, 95, 2, 2),
+    ];
+    for path in [&strips, &tiles] {
+        let mut bands = RowBands::open(path, &ReadOptions::default()).unwrap();
+        assert_eq!(bands.reads_columns(), path == &tiles, "{}", path.display());
+        for (x, y, w, h) in windows {
+            let window = Window {
+                x,
+                y,
+                width: w,
+                height: h,
+            };
+            let read = bands.read_window(window).unwrap();
+            let expected = reference.crop(x, y, w, h);
+            assert_eq!(
+                read.samples,
+                expected.samples,
+                "{window:?} of {}",
+                path.display()
+            );
+            // A band below kept rows gives the rows of both.
+            if h > 1 {
+                let above = reference.crop(x, y, w, 1);
+                let below = Window {
+                    y: y + 1,
+                    height: h - 1,
+                    ..window
+                };
+                let joined = bands.read_window_below(&above, below).unwrap();
+                assert_eq!(joined.samples, expected.samples, "{window:?} joined");
+            }
+        }
+        for (x, y, w, h) in [
+            (0, 0, 0, 5),
+            (330, 0, 4, 1),
+            (0, 250, 1, 1),
+            (usize::MAX, 0, 2, 2),
+        ] {
+            let window = Window {
+                x,
+                y,
+                width: w,
+                height: h,
+            };
+            let err = bands.read_window(window).unwrap_err();
+            assert!(matches!(err, DemError::WindowOutOfRange { .. }), "{err}");
+        }
+    }
+}
+
+/// Encodes `path` as the command line does (`RowBands`, tiles of at most `tile`),
+/// with blocks of `block_width` samples, into `out`; returns the file's bytes.
+fn stream_encode(
+    path: &Path,
+    tile: usize,
+    options: &EncodeOptions,
+    block_width: usize,
+    out: &Path,
+) -> Vec<u8> {
+    let mut bands = RowBands::open(path, &ReadOptions::default()).unwrap();
+    let info = bands.info().clone();
+    let grid = TileGrid::balanced(info.width, info.height, tile).unwrap();
+    let mut rows = Vec::new();
+    encode_tiled(
+        &mut bands,
+        &info,
+        &grid,
+        options,
+        block_width,
+        out,
+        &mut |k| rows.push(k),
+    )
+    .unwrap();
+    assert_eq!(
+        rows,
+        (1..=grid.rows()).collect::<Vec<_>>(),
+        "every tile row reported once, in order"
+    );
+    std::fs::read(out).unwrap()
+}
+
+#[test]
+fn streaming_encode_by_blocks_gives_the_in_memory_bytes() {
+    let scratch = support::scratch("dem_streaming");
+    let terrain = FractalTerrain::new(13);
+    let tiles = scratch.path().join("tiles.tif");
+    let strips = scratch.path().join("strips.tif");
+    write_tiled_geotiff(&tiles, 700, 333, &terrain, 64).unwrap();
+    write_geotiff(&strips, 700, 333, &terrain).unwrap();
+    let raster = read_dem(&tiles, &ReadOptions::default()).unwrap();
+    let out = scratch.path().join("out.ezw");
+    for (quality, budget) in [(Quality::Lossless, None), (Quality::Lossless, Some(9000))] {
+        for threads in [1, 2] {
+            let options = EncodeOptions {
+                tile_size: Some(128),
+                threads,
+                ..EncodeOptions::new(quality, budget)
+            };
+            let memory = wavemesh_codec::encode(&raster, &options).unwrap().bytes;
+            // Tiles of 117 x 111 (6 across): blocks of 1, 2 and 4 tiles, and whole rows.
+            for (path, block_width) in [
+                (&tiles, 100),
+                (&tiles, 256),
+                (&tiles, 500),
+                (&tiles, usize::MAX),
+                (&strips, 256),
+            ] {
+                let streamed = stream_encode(path, 128, &options, block_width, &out);
+                assert!(
+                    streamed == memory,
+                    "{budget:?} bytes, {threads} threads, blocks of {block_width} from {}: \
+                     {} bytes streamed, {} in memory",
+                    path.display(),
+                    streamed.len(),
+                    memory.len()
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn read_rows_refuses_rows_outside_and_bands_over_the_limits() {
     let scratch = support::scratch("dem_streaming");
     let path = scratch.path().join("small.tif");
@@ -308,7 +450,7 @@ fn read_rows_refuses_rows_outside_and_bands_over_the_limits() {
     let mut bands = RowBands::open(&path, &ReadOptions::default()).unwrap();
     for (y0, rows) in [(0, 0), (80, 11), (90, 1), (usize::MAX, 2)] {
         let err = bands.read_rows(y0, rows).unwrap_err();
-        assert!(matches!(err, DemError::RowsOutOfRange { .. }), "{err}");
+        assert!(matches!(err, DemError::WindowOutOfRange { .. }), "{err}");
     }
     // The raster (9000 samples) is over max_samples; a row of 4 tiles and 10 rows are not.
     let small = ReadOptions {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemInfo, RowBands, TiledGeoTiffWriter};
-use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
+use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError, BLOCK_WIDTH};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{decode_window, DecodeOptions, Raster, TileGrid, Window};
 
@@ -34,9 +34,15 @@ pub fn encode(
         args.json,
     );
     let (written, seconds, peak) = timed(|| {
-        encode_tiled(bands, &info, grid, &options, &args.output, &mut |k| {
-            bar.show(k)
-        })
+        encode_tiled(
+            bands,
+            &info,
+            grid,
+            &options,
+            BLOCK_WIDTH,
+            &args.output,
+            &mut |k| bar.show(k),
+        )
     });
     bar.finish();
     let written = written.map_err(|e| match e {

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Raster, SampleType, Samples};
+use wavemesh_codec::{Raster, SampleType, Samples, Window};
 
 use super::tiff_chunks::{bytes, bytes_mut, zeroed_samples, ChunkReader};
 use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, SourceFile};
@@ -58,7 +58,7 @@ impl RowBands {
             path: path.to_path_buf(),
             options: options.clone(),
         };
-        bands.check_band(1)?;
+        bands.check_band(bands.info.width, 1)?;
         Ok(bands)
     }
 
@@ -77,71 +77,119 @@ impl RowBands {
         }
     }
 
+    /// Whether a window narrower than the raster is cheaper to read than its full rows
+    /// (a tiled TIFF, or a format read whole); strips are decoded at full width
+    /// whatever the window.
+    pub fn reads_columns(&self) -> bool {
+        match &self.source {
+            BandSource::Chunks(chunks) => chunks.reads_columns(),
+            BandSource::Whole(_) => true,
+        }
+    }
+
     /// Rows `y0..y0 + rows` as a `width × rows` raster: samples exactly as [`read_dem`]
     /// gives them, the nodata value set, no georeferencing.
     pub fn read_rows(&mut self, y0: usize, rows: usize) -> Result<Raster, DemError> {
-        let height = self.info.height;
-        if rows == 0 || y0.checked_add(rows).is_none_or(|end| end > height) {
-            return Err(DemError::RowsOutOfRange { y0, rows, height });
-        }
-        self.check_band(rows)?;
         let width = self.info.width;
-        let samples = match &mut self.source {
-            BandSource::Chunks(chunks) => chunks
-                .read_rows(y0, rows)
-                .map_err(|e| e.in_file(&self.path))?,
-            BandSource::Whole(samples) => slice(samples, width * y0, width * rows),
+        self.read_window(Window {
+            x: 0,
+            y: y0,
+            width,
+            height: rows,
+        })
+    }
+
+    /// The samples of `window` as a raster, exactly as [`read_dem`] gives them, the
+    /// nodata value set, no georeferencing. A tiled TIFF decodes only the tiles the
+    /// window touches.
+    pub fn read_window(&mut self, window: Window) -> Result<Raster, DemError> {
+        self.check_window(&window)?;
+        let mut samples = zeroed_samples(self.info.sample_type, window.width * window.height);
+        self.read_into(&window, bytes_mut(&mut samples))?;
+        self.band(window.width, window.height, samples)
+    }
+
+    /// `above` (the samples just above `window` in its columns, e.g. kept from the
+    /// previous band) with the samples of `window` below it, as one raster: the band is
+    /// allocated once, the new rows read straight into it.
+    pub fn read_window_below(
+        &mut self,
+        above: &Raster,
+        window: Window,
+    ) -> Result<Raster, DemError> {
+        self.check_window(&window)?;
+        if above.width != window.width || above.sample_type() != self.info.sample_type {
+            return Err(DemError::InvalidRaster(format!(
+                "rows of {} {} samples above a band of {} {} samples a row",
+                above.width,
+                above.sample_type().name(),
+                window.width,
+                self.info.sample_type.name()
+            )));
+        }
+        self.check_band(window.width, above.height + window.height)?;
+        let rows = above.height + window.height;
+        let mut samples = zeroed_samples(self.info.sample_type, window.width * rows);
+        let kept = bytes(&above.samples);
+        let (top, below) = bytes_mut(&mut samples).split_at_mut(kept.len());
+        top.copy_from_slice(kept);
+        self.read_into(&window, below)?;
+        self.band(window.width, rows, samples)
+    }
+
+    /// Refuses a window outside the raster or over the limits.
+    fn check_window(&self, window: &Window) -> Result<(), DemError> {
+        let (width, height) = (self.info.width, self.info.height);
+        let inside = |start: usize, len: usize, side: usize| {
+            len > 0 && start.checked_add(len).is_some_and(|end| end <= side)
         };
+        if !inside(window.x, window.width, width) || !inside(window.y, window.height, height) {
+            return Err(DemError::WindowOutOfRange {
+                window: (window.x, window.y, window.width, window.height),
+                width,
+                height,
+            });
+        }
+        self.check_band(window.width, window.height)
+    }
+
+    /// Reads the samples of `window` (checked) into `out`, native byte order.
+    fn read_into(&mut self, window: &Window, out: &mut [u8]) -> Result<(), DemError> {
+        let Window {
+            x,
+            y,
+            width,
+            height,
+        } = *window;
+        match &mut self.source {
+            BandSource::Chunks(chunks) => chunks
+                .read_window_into((x, y, width, height), out)
+                .map_err(|e| e.in_file(&self.path)),
+            BandSource::Whole(all) => {
+                let sample_bytes = self.info.sample_type.bytes();
+                let all = bytes(all);
+                let raster_row = self.info.width * sample_bytes;
+                for (k, dest) in out.chunks_exact_mut(width * sample_bytes).enumerate() {
+                    let start = (y + k) * raster_row + x * sample_bytes;
+                    dest.copy_from_slice(&all[start..start + dest.len()]);
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// A band raster of `samples` with the source's nodata value.
+    fn band(&self, width: usize, rows: usize, samples: Samples) -> Result<Raster, DemError> {
         let mut band = super::make_raster(width, rows, samples)?;
         band.nodata = self.info.nodata;
         Ok(band)
     }
 
-    /// `above` (rows of the raster just above `y0`, e.g. kept from the previous band)
-    /// with rows `y0..y0 + rows` below it, as one raster: the band is allocated once, the
-    /// new rows read straight into it.
-    pub fn read_rows_below(
-        &mut self,
-        above: &Raster,
-        y0: usize,
-        rows: usize,
-    ) -> Result<Raster, DemError> {
-        let height = self.info.height;
-        if rows == 0 || y0.checked_add(rows).is_none_or(|end| end > height) {
-            return Err(DemError::RowsOutOfRange { y0, rows, height });
-        }
-        let width = self.info.width;
-        if above.width != width || above.sample_type() != self.info.sample_type {
-            return Err(DemError::InvalidRaster(format!(
-                "rows of {} {} samples above a band of {width} {} samples a row",
-                above.width,
-                above.sample_type().name(),
-                self.info.sample_type.name()
-            )));
-        }
-        self.check_band(above.height + rows)?;
-        let mut samples = zeroed_samples(self.info.sample_type, width * (above.height + rows));
-        let kept = bytes(&above.samples);
-        let (top, below) = bytes_mut(&mut samples).split_at_mut(kept.len());
-        top.copy_from_slice(kept);
-        match &mut self.source {
-            BandSource::Chunks(chunks) => chunks
-                .read_rows_into(y0, rows, below)
-                .map_err(|e| e.in_file(&self.path))?,
-            BandSource::Whole(all) => {
-                let row_bytes = width * self.info.sample_type.bytes();
-                below.copy_from_slice(&bytes(all)[y0 * row_bytes..(y0 + rows) * row_bytes]);
-            }
-        }
-        let mut band = super::make_raster(width, above.height + rows, samples)?;
-        band.nodata = self.info.nodata;
-        Ok(band)
-    }
-
-    /// Checks that a band of `rows` rows plus the rows the source keeps (one chunk row,
-    /// or the whole raster for formats read whole) fits `max_samples` and `max_memory`.
-    fn check_band(&self, rows: usize) -> Result<(), DemError> {
-        let width = self.info.width as u64;
+    /// Checks that a band of `width × rows` samples plus what the source keeps (one
+    /// chunk row, or the whole raster for formats read whole) fits `max_samples` and
+    /// `max_memory`.
+    fn check_band(&self, width: usize, rows: usize) -> Result<(), DemError> {
+        let width = width as u64;
         let kept = match &self.source {
             BandSource::Chunks(chunks) => chunks.chunk_row_samples(),
             BandSource::Whole(samples) => samples.len() as u64,
@@ -170,17 +218,5 @@ impl RowBands {
             return Err(over(memory, self.options.max_memory, "bytes"));
         }
         Ok(())
-    }
-}
-
-/// `len` samples from `start` of `samples`, copied.
-fn slice(samples: &Samples, start: usize, len: usize) -> Samples {
-    let range = start..start + len;
-    match samples {
-        Samples::U8(v) => Samples::U8(v[range].to_vec()),
-        Samples::U16(v) => Samples::U16(v[range].to_vec()),
-        Samples::I16(v) => Samples::I16(v[range].to_vec()),
-        Samples::I32(v) => Samples::I32(v[range].to_vec()),
-        Samples::F32(v) => Samples::F32(v[range].to_vec()),
     }
 }

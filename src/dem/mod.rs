@@ -111,7 +111,7 @@ pub enum DemError {
          (one row of chunks), needs {needed} {unit}, more than the limit of {limit} {unit}"
     )]
     BandOverLimit {
-        /// Raster width.
+        /// Columns of the band.
         width: u64,
         /// Rows of the band.
         rows: u64,
@@ -124,13 +124,16 @@ pub enum DemError {
         /// `samples` or `bytes`.
         unit: &'static str,
     },
-    /// Rows asked for that the raster does not have.
-    #[error("rows {y0}..{} asked for, but the raster has {height} rows", y0 + rows)]
-    RowsOutOfRange {
-        /// First row asked for.
-        y0: usize,
-        /// Rows asked for.
-        rows: usize,
+    /// A window asked for that is empty or not inside the raster.
+    #[error(
+        "window {}x{} at ({}, {}) asked for, but the raster is {width}x{height}",
+        window.2, window.3, window.0, window.1
+    )]
+    WindowOutOfRange {
+        /// The window: x, y, width, height.
+        window: (usize, usize, usize, usize),
+        /// Columns of the raster.
+        width: usize,
         /// Rows of the raster.
         height: usize,
     },

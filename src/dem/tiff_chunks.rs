@@ -149,6 +149,73 @@ impl<R: Read + Seek> ChunkReader<R> {
         Ok(())
     }
 
+    /// Whether a window narrower than the raster costs less than its full rows: the TIFF
+    /// is tiled, so only the tiles the window touches are decoded (a strip spans the
+    /// raster's width and is decoded whole whatever the window).
+    pub(super) fn reads_columns(&self) -> bool {
+        self.tiled
+    }
+
+    /// The `width × height` samples at (`x`, `y`) (within the raster) into `out`, their
+    /// bytes in native order. A tiled TIFF decodes the tiles the window touches, nothing
+    /// else and nothing kept; strips go through [`ChunkReader::read_rows_into`]'s path
+    /// and keep the window's columns.
+    pub(super) fn read_window_into(
+        &mut self,
+        (x, y, width, height): (usize, usize, usize, usize),
+        out: &mut [u8],
+    ) -> Result<(), DemError> {
+        if x == 0 && width == self.width {
+            return self.read_rows_into(y, height, out);
+        }
+        let sample_bytes = self.sample_type.bytes();
+        let out_row = width * sample_bytes;
+        if !self.tiled {
+            let raster_row = self.width * sample_bytes;
+            let mut rows = vec![0u8; raster_row];
+            for (k, dest) in out.chunks_exact_mut(out_row).enumerate() {
+                self.read_rows_into(y + k, 1, &mut rows)?;
+                dest.copy_from_slice(&rows[x * sample_bytes..(x + width) * sample_bytes]);
+            }
+            return Ok(());
+        }
+        let (cw, ch) = (self.chunk_width, self.chunk_height);
+        let mut tile = vec![0u8; cw * ch * sample_bytes];
+        for chunk_row in y / ch..(y + height).div_ceil(ch) {
+            for chunk_column in x / cw..(x + width).div_ceil(cw) {
+                let (tx, ty) = (chunk_column * cw, chunk_row * ch);
+                let tile_width = cw.min(self.width - tx);
+                let tile_height = ch.min(self.height - ty);
+                let bytes = &mut tile[..tile_width * tile_height * sample_bytes];
+                self.decode_tile(chunk_row, chunk_column, bytes)?;
+                let (x0, x1) = (tx.max(x), (tx + tile_width).min(x + width));
+                let (row_from, row_to) = (ty.max(y), (ty + tile_height).min(y + height));
+                for row in row_from..row_to {
+                    let src = ((row - ty) * tile_width + x0 - tx) * sample_bytes;
+                    let dest = (row - y) * out_row + (x0 - x) * sample_bytes;
+                    let len = (x1 - x0) * sample_bytes;
+                    out[dest..dest + len].copy_from_slice(&bytes[src..src + len]);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Decodes the tile at (`chunk_row`, `chunk_column`) of a tiled TIFF into `out`
+    /// (its samples within the raster, row by row).
+    fn decode_tile(
+        &mut self,
+        chunk_row: usize,
+        chunk_column: usize,
+        out: &mut [u8],
+    ) -> Result<(), DemError> {
+        let index = chunk_row * self.width.div_ceil(self.chunk_width) + chunk_column;
+        let index = u32::try_from(index).map_err(|_| chunk_index_error(index))?;
+        self.decoder
+            .read_chunk_bytes(index, out)
+            .map_err(|e| tiff_error(&self.path, e))
+    }
+
     /// Chunk row `chunk_row`, from the cache or decoded into it (replacing what it held).
     fn cached_chunk_row(&mut self, chunk_row: usize) -> Result<&Samples, DemError> {
         if self.cached.as_ref().map(|(row, _)| *row) != Some(chunk_row) {
@@ -174,15 +241,11 @@ impl<R: Read + Seek> ChunkReader<R> {
         let row_bytes = self.width * sample_bytes;
         let mut tile = vec![0u8; self.chunk_width * self.chunk_height * sample_bytes];
         for column in 0..across {
-            let index = chunk_row * across + column;
-            let index = u32::try_from(index).map_err(|_| chunk_index_error(index))?;
             let x0 = column * self.chunk_width * sample_bytes;
             let tile_row_bytes =
                 (self.width - column * self.chunk_width).min(self.chunk_width) * sample_bytes;
             let tile_bytes = out.len() / row_bytes * tile_row_bytes;
-            self.decoder
-                .read_chunk_bytes(index, &mut tile[..tile_bytes])
-                .map_err(|e| tiff_error(&self.path, e))?;
+            self.decode_tile(chunk_row, column, &mut tile[..tile_bytes])?;
             for (dest, src) in out
                 .chunks_exact_mut(row_bytes)
                 .zip(tile[..tile_bytes].chunks_exact(tile_row_bytes))

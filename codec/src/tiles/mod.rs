@@ -143,13 +143,14 @@ impl TileGrid {
         }
     }
 
-    /// The raster rows the streams of tile row `row` code (a band as wide as the raster).
-    pub fn coded_rows(&self, row: usize) -> Window {
-        let coded = self.coded(row * self.columns());
+    /// The samples the streams of tiles `columns` (tile columns) of row `row` code: a
+    /// band as high as the row's coded rows and as wide as those tiles and their overlap.
+    pub fn coded_block(&self, row: usize, columns: std::ops::Range<usize>) -> Window {
+        let first = self.coded(row * self.columns() + columns.start);
+        let last = self.coded(row * self.columns() + columns.end.max(columns.start + 1) - 1);
         Window {
-            x: 0,
-            width: self.width,
-            ..coded
+            width: last.x + last.width - first.x,
+            ..first
         }
     }
 
@@ -270,7 +271,19 @@ pub(crate) fn encode(
     for row in 0..grid.rows() {
         let y = row * grid.tile_height;
         let height = grid.tile_height.min(grid.height - y);
-        tiles.extend(encode_row(&workers, (raster, 0), grid, row, options)?);
+        let whole = Window {
+            x: 0,
+            y: 0,
+            width: raster.width,
+            height: raster.height,
+        };
+        tiles.extend(encode_tiles(
+            &workers,
+            (raster, &whole),
+            grid,
+            grid.row(row),
+            options,
+        )?);
         let done = (y + height) as u64 * raster.width as u64;
         crate::progress::report(crate::progress::Stage::Tiles, done, raster.len() as u64);
     }
@@ -298,43 +311,43 @@ pub(crate) fn encode(
     })
 }
 
-/// Encodes the tiles of row `row` of `grid` from `band`, the raster's rows
-/// [`TileGrid::coded_rows`] of that tile row, on `options.threads` threads (0: one per core), in grid order. With a byte
-/// budget each tile is coded up to its cap (see [`cut_to_budget`] for the cut).
-pub fn encode_band(
+/// Encodes tiles `columns` (tile columns) of row `row` of `grid` from `band`, the
+/// samples of [`TileGrid::coded_block`] for them, on `options.threads` threads (0: one
+/// per core), in grid order. With a byte budget each tile is coded up to its cap (see
+/// [`cut_to_budget`] for the cut).
+pub fn encode_block(
     band: &Raster,
     grid: &TileGrid,
     row: usize,
+    columns: std::ops::Range<usize>,
     options: &EncodeOptions,
 ) -> Result<Vec<EncodedTile>, CodecError> {
-    let band_y = grid.coded_rows(row).y;
-    encode_row(
+    let origin = grid.coded_block(row, columns.clone());
+    let first = row * grid.columns();
+    encode_tiles(
         &Workers::new(options.threads)?,
-        (band, band_y),
+        (band, &origin),
         grid,
-        row,
+        first + columns.start..first + columns.end,
         options,
     )
 }
 
-/// The tiles of row `row` cut from `rows`, whose first row is raster row `first`.
-fn encode_row(
+/// Tiles `tiles` (indices, in order) cut from `band`, whose top-left sample is raster
+/// sample (`origin.x`, `origin.y`).
+fn encode_tiles(
     workers: &Workers,
-    (rows, first): (&Raster, usize),
+    (band, origin): (&Raster, &Window),
     grid: &TileGrid,
-    row: usize,
+    tiles: std::ops::Range<usize>,
     options: &EncodeOptions,
 ) -> Result<Vec<EncodedTile>, CodecError> {
     let samples = (grid.width * grid.height) as u64;
     workers
-        .map(grid.row(row), |k| {
-            let window = grid.coded(k);
-            let part = rows.crop(window.x, window.y - first, window.width, window.height);
-            encode_tile(
-                &part,
-                options,
-                tile_cap(options.budget_bytes, &window, samples),
-            )
+        .map(tiles, |k| {
+            let w = grid.coded(k);
+            let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
+            encode_tile(&part, options, tile_cap(options.budget_bytes, &w, samples))
         })
         .into_iter()
         .collect()
