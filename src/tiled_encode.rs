@@ -48,28 +48,9 @@ pub struct TiledEncoded {
 /// raster.
 pub const BLOCK_WIDTH: usize = 8192;
 
-/// Tiles of one tile row coded from one band of samples.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct Block {
-    /// The tile row.
-    row: usize,
-    /// Its tile columns.
-    columns: Range<usize>,
-}
-
-/// The blocks of `grid` in file order (row by row, left to right), each
-/// `per_block` tile columns wide (the last of a row narrower).
-fn blocks(grid: &TileGrid, per_block: usize) -> Vec<Block> {
-    let columns = grid.columns();
-    (0..grid.rows())
-        .flat_map(|row| {
-            (0..columns).step_by(per_block).map(move |c| Block {
-                row,
-                columns: c..(c + per_block).min(columns),
-            })
-        })
-        .collect()
-}
+/// Tiles of one tile row coded from one band of samples: (tile row, tile columns),
+/// as [`TileGrid::blocks`] gives them.
+type Block = (usize, Range<usize>);
 
 /// Tile columns a block spans: about `block_width` samples when the source reads
 /// columns cheaply, else the whole row (a strip is decoded at full width anyway).
@@ -104,7 +85,7 @@ pub fn encode_tiled(
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
-    let blocks = blocks(grid, block_columns(bands, grid, block_width));
+    let blocks = grid.blocks(block_columns(bands, grid, block_width));
     let mut band = read_block(bands, grid, &blocks[0], None)?;
     for (k, block) in blocks.iter().enumerate() {
         let next = blocks.get(k + 1);
@@ -120,8 +101,8 @@ pub fn encode_tiled(
         if let Some(next_band) = next_band? {
             band = next_band;
         }
-        if block.columns.end == grid.columns() {
-            rows_done(block.row + 1);
+        if block.1.end == grid.columns() {
+            rows_done(block.0 + 1);
         }
     }
     if let Some(budget) = options.budget_bytes {
@@ -163,7 +144,7 @@ fn code_and_read_next(
         next.map(|next| read_block(bands, grid, next, Some((block, band))))
             .transpose()
     };
-    let code = || encode_block(band, grid, block.row, block.columns.clone(), options);
+    let code = || encode_block(band, grid, block.0, block.1.clone(), options);
     if options.threads == 1 {
         let tiles = code();
         return (tiles, read_next(bands));
@@ -185,12 +166,12 @@ fn read_block(
     block: &Block,
     previous: Option<(&Block, &Raster)>,
 ) -> Result<Raster, DemError> {
-    let window = grid.coded_block(block.row, block.columns.clone());
-    let above = previous.filter(|(p, _)| p.row + 1 == block.row && p.columns == block.columns);
+    let window = grid.coded_block(block.0, block.1.clone());
+    let above = previous.filter(|(p, _)| p.0 + 1 == block.0 && p.1 == block.1);
     let Some((above, band)) = above else {
         return bands.read_window(window);
     };
-    let from = grid.coded_block(above.row, above.columns.clone());
+    let from = grid.coded_block(above.0, above.1.clone());
     let shared = (from.y + from.height).saturating_sub(window.y);
     if shared == 0 {
         return bands.read_window(window);

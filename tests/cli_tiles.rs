@@ -281,30 +281,44 @@ fn a_4096_square_encode_holds_a_row_of_tiles_not_the_raster() {
 }
 
 #[test]
-fn encode_memory_does_not_grow_with_the_raster_width() {
+fn memory_does_not_grow_with_the_raster_width() {
     let dir = scratch("cli-tiles");
-    let peak = |width: u32| {
+    let peaks = |width: u32| {
         let tif = dir.path().join(format!("tiled-{width}.tif"));
-        let size = format!("{width}x600");
+        let size = format!("{width}x512");
         json(&["synth", s(&tif), "--size", &size, "--tile", "512", "--json"]);
         let ezw = dir.path().join("wide.ezw");
-        let report = json(&["encode", s(&tif), "-o", s(&ezw), "--json"]);
+        let out = dir.path().join("wide.tif");
+        let encoded = json(&["encode", s(&tif), "-o", s(&ezw), "--json"]);
+        let decoded = json(&["decode", s(&ezw), "-o", s(&out), "--json"]);
+        assert_eq!(
+            read(&out),
+            read(&tif),
+            "lossless round trip at {width} across"
+        );
         std::fs::remove_file(&tif).unwrap();
-        report["encode_peak_heap_bytes"].as_u64().unwrap()
+        let peak = |report: &serde_json::Value, key: &str| report[key].as_u64().unwrap();
+        (
+            peak(&encoded, "encode_peak_heap_bytes"),
+            peak(&decoded, "decode_peak_heap_bytes"),
+        )
     };
-    // A tiled GeoTIFF, one tile row of 1024-sample tiles read in blocks of 8 tiles (the
-    // next read while the current one is coded): the wider raster has four blocks a row
-    // where the narrower has two, and the same peak.
-    let (narrow, wide) = (peak(16384), peak(32768));
-    assert!(
-        wide < narrow + narrow / 8,
-        "peak heap {wide} at 32768 samples across against {narrow} at 16384"
-    );
-    // Full-width bands (the tile row and its overlap, this one and the next) alone
-    // would take more.
-    let two_rows = 2 * 32768 * 604 * 2;
-    assert!(
-        wide < two_rows,
-        "peak heap {wide}, two full-width bands {two_rows}"
-    );
+    // A tiled GeoTIFF, one tile row of 1024 x 512 tiles coded and written in blocks of
+    // 8 tiles (the next read or decoded while the current one is coded or written): the
+    // wider raster has four blocks a row where the narrower has two, and the same peaks.
+    let (narrow, wide) = (peaks(16384), peaks(32768));
+    for (what, narrow, wide) in [("encode", narrow.0, wide.0), ("decode", narrow.1, wide.1)] {
+        println!("{what} heap peak: {narrow} bytes at 16384 x 512, {wide} at 32768 x 512");
+        assert!(
+            wide < narrow + narrow / 8,
+            "{what} peak heap {wide} at 32768 samples across against {narrow} at 16384"
+        );
+        // Full-width bands (the tile row and its overlap, this one and the next) alone
+        // would take more.
+        let two_rows = 2 * 32768 * 512 * 2;
+        assert!(
+            wide < two_rows,
+            "{what} peak heap {wide}, two full-width bands {two_rows}"
+        );
+    }
 }

@@ -653,6 +653,76 @@ fn gdal_view(gdalinfo: &Path, path: &Path) -> serde_json::Value {
 }
 
 #[test]
+fn tiled_writer_takes_blocks_of_whole_tiles_in_any_order() {
+    let scratch = support::scratch("dem_streaming");
+    for raster in every_type() {
+        let info = DemInfo::of(&raster);
+        let (w, h) = (raster.width, raster.height);
+        let path = scratch.path().join("blocks.tif");
+        let mut writer = TiledGeoTiffWriter::create(&path, &info, 32).unwrap();
+        // Blocks of 2 x 1 tiles (the last of a row and column cut by the raster's
+        // edges), bottom row first, right to left.
+        let mut blocks = Vec::new();
+        for y in (0..h).step_by(32) {
+            for x in (0..w).step_by(64) {
+                blocks.push((x, y));
+            }
+        }
+        for &(x, y) in blocks.iter().rev() {
+            let part = raster.crop(x, y, 64.min(w - x), 32.min(h - y));
+            writer.write_block((x, y), &part).unwrap();
+        }
+        writer.finish().unwrap();
+        let back = read_dem(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(
+            bits(&back.samples),
+            bits(&raster.samples),
+            "{}",
+            raster.sample_type().name()
+        );
+        assert_info_matches(&DemInfo::of(&back), &raster, "blocks");
+    }
+}
+
+#[test]
+fn tiled_writer_refuses_blocks_that_are_not_whole_tiles_once() {
+    let scratch = support::scratch("dem_streaming");
+    let raster = every_type().remove(2);
+    let info = DemInfo::of(&raster);
+    let path = scratch.path().join("refused.tif");
+    let mut writer = TiledGeoTiffWriter::create(&path, &info, 32).unwrap();
+    // Off the tile grid, a side neither whole tiles nor reaching the edge, past the edge.
+    for (x, y, w, h) in [
+        (16, 0, 32, 32),
+        (0, 0, 40, 32),
+        (96, 0, 3, 32),
+        (0, 64, 32, 32),
+    ] {
+        let part = Raster::new(w, h, Samples::I16(vec![0; w * h])).unwrap();
+        let err = writer.write_block((x, y), &part).unwrap_err();
+        assert!(
+            err.to_string().contains("not whole tiles"),
+            "({x}, {y}): {err}"
+        );
+    }
+    writer
+        .write_block((0, 0), &raster.crop(0, 0, 32, 32))
+        .unwrap();
+    let err = writer
+        .write_block((0, 0), &raster.crop(0, 0, 32, 32))
+        .unwrap_err();
+    assert!(err.to_string().contains("given twice"), "{err}");
+    let err = writer
+        .write_rows(0, &slice_rows(&raster, 0, 8))
+        .unwrap_err();
+    assert!(err.to_string().contains("written by blocks"), "{err}");
+    let err = writer.finish().unwrap_err();
+    assert!(err.to_string().contains("with 1 of"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(scratch.path()).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
 fn gdal_reads_the_tiled_writer_as_it_reads_the_whole_raster_writer() {
     let test = "gdal_reads_the_tiled_writer_as_it_reads_the_whole_raster_writer";
     let Some(gdalinfo) = support::program(test, "gdalinfo", "Debian: gdal-bin") else {

@@ -466,7 +466,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             let bar =
                 super::tiled_coding::TileRowBar::new("decoding", &layout.grid, load, args.json);
             let out = timed(|| {
-                super::tiled_coding::decode_rows(
+                super::tiled_coding::decode_to_geotiff(
                     (&args.input, &args.output),
                     &mut source,
                     layout,

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use wavemesh::byte_source::FileSource;
-use wavemesh::dem::{DemInfo, RowBands, TiledGeoTiffWriter};
+use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter};
 use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError, BLOCK_WIDTH};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{decode_window, DecodeOptions, Raster, TileGrid, Window};
@@ -129,11 +129,24 @@ impl TileRowBar {
 /// Tile side of the GeoTIFFs a streaming decode writes.
 const GEOTIFF_TILE: u32 = 256;
 
-/// Decodes the tiled file `layout` describes one tile row at a time into a tiled
-/// GeoTIFF at `output`, each row written on another thread while the next is decoded
-/// (with one thread, written before the next is decoded):
-/// memory holds two rows of tiles, not the raster. `bar` shows the rows done.
-pub fn decode_rows(
+/// Tile columns a streaming decode writes at once: about [`BLOCK_WIDTH`] samples when
+/// [`GEOTIFF_TILE`] divides the file's tiles (every block is whole GeoTIFF tiles, written
+/// as it comes), else whole tile rows (GeoTIFF tiles straddle the file's).
+fn decode_block_columns(grid: &TileGrid) -> usize {
+    let tile = GEOTIFF_TILE as usize;
+    if grid.tile_width.is_multiple_of(tile) && grid.tile_height.is_multiple_of(tile) {
+        (BLOCK_WIDTH / grid.tile_width).clamp(1, grid.columns())
+    } else {
+        grid.columns()
+    }
+}
+
+/// Decodes the tiled file `layout` describes one block at a time (a run of tiles of one
+/// tile row, see [`decode_block_columns`]) into a tiled GeoTIFF at `output`, each block
+/// written on another thread while the next is decoded (with one thread, written
+/// before the next is decoded): memory holds two blocks, not the raster, and not a tile
+/// row when the blocks are narrower. `bar` shows the tile rows done.
+pub fn decode_to_geotiff(
     (input, output): (&Path, &Path),
     source: &mut FileSource,
     layout: &TiledLayout,
@@ -160,64 +173,73 @@ pub fn decode_rows(
         bytes_used: layout.head_len(),
         damage: None,
     };
-    let mut decode_all = |deliver: &mut dyn FnMut(usize, Raster) -> bool| {
-        for row in 0..grid.rows() {
-            let y = row * grid.tile_height;
-            let window = Window {
-                x: 0,
-                y,
-                width: grid.width,
-                height: grid.tile_height.min(grid.height - y),
-            };
+    let per_block = decode_block_columns(grid);
+    let by_rows = per_block == grid.columns();
+    let mut decode_all = |deliver: &mut dyn FnMut(Window, Raster) -> bool| {
+        for (row, columns) in grid.blocks(per_block) {
+            let window = grid.block(row, columns.clone());
             let decoded = decode_window(source, Some(window), options)
                 .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
             outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
             outcome.complete &= decoded.complete;
             outcome.bytes_used += decoded.bytes_used - layout.head_len();
             outcome.damage = outcome.damage.or(decoded.damage);
-            if !deliver(y, decoded.raster) {
+            if !deliver(window, decoded.raster) {
                 break; // the writer failed: its error is reported by the caller
             }
-            bar.show(row + 1);
+            if columns.end == grid.columns() {
+                bar.show(row + 1);
+            }
         }
         Ok::<(), CliError>(())
     };
+    let write = move |writer: &mut TiledGeoTiffWriter, window: Window, band: &Raster| {
+        if by_rows {
+            writer.write_rows(window.y, band)
+        } else {
+            writer.write_block((window.x, window.y), band)
+        }
+    };
     if options.threads == 1 {
-        // One thread: each row is written before the next is decoded.
+        // One thread: each block is written before the next is decoded.
         let mut writer = writer;
         let mut failure = None;
-        decode_all(&mut |y, band| match writer.write_rows(y, &band) {
-            Ok(()) => true,
-            Err(e) => {
-                failure = Some(e);
-                false
-            }
-        })?;
+        decode_all(
+            &mut |window, band| match write(&mut writer, window, &band) {
+                Ok(()) => true,
+                Err(e) => {
+                    failure = Some(e);
+                    false
+                }
+            },
+        )?;
         return match failure {
             Some(e) => Err(CliError::DemOutput(e)),
             None => writer.finish().map_err(CliError::DemOutput),
         }
         .map(|()| outcome);
     }
-    let (rows, written) = std::sync::mpsc::sync_channel::<(usize, Raster)>(1);
+    let (blocks, written) = std::sync::mpsc::sync_channel::<(Window, Raster)>(1);
     std::thread::scope(|scope| {
-        let writing = scope.spawn(move || write_rows(writer, written));
-        let decoding = decode_all(&mut |y, band| rows.send((y, band)).is_ok());
-        drop(rows);
+        let writing = scope.spawn(move || write_blocks(writer, written, write));
+        let decoding = decode_all(&mut |window, band| blocks.send((window, band)).is_ok());
+        drop(blocks);
         let wrote = writing.join().expect("the GeoTIFF writer does not panic");
         decoding.and(wrote.map_err(CliError::DemOutput))
     })?;
     Ok(outcome)
 }
 
-/// Writes the rows that arrive, in order, then finishes the file (nothing is left
-/// behind if a row fails or the rows stop early: the writer is dropped unfinished).
-fn write_rows(
+/// Writes the blocks that arrive with `write`, then finishes the file (nothing is
+/// left behind if a block fails or the blocks stop early: the writer is dropped
+/// unfinished).
+fn write_blocks(
     mut writer: TiledGeoTiffWriter,
-    rows: std::sync::mpsc::Receiver<(usize, Raster)>,
-) -> Result<(), wavemesh::dem::DemError> {
-    for (y, band) in rows {
-        writer.write_rows(y, &band)?;
+    blocks: std::sync::mpsc::Receiver<(Window, Raster)>,
+    write: impl Fn(&mut TiledGeoTiffWriter, Window, &Raster) -> Result<(), DemError>,
+) -> Result<(), DemError> {
+    for (window, band) in blocks {
+        write(&mut writer, window, &band)?;
     }
     writer.finish()
 }

@@ -10,7 +10,8 @@
 //!
 //! Streaming, for rasters larger than memory: [`RowBands`] reads a DEM by bands of rows
 //! (a GeoTIFF from the strips or tiles the band touches only), and
-//! [`TiledGeoTiffWriter`] writes a tiled GeoTIFF by bands, one row of tiles in memory.
+//! [`TiledGeoTiffWriter`] writes a tiled GeoTIFF by bands (one row of tiles in memory) or
+//! by blocks of whole tiles.
 
 mod asc;
 mod bands;

@@ -1,4 +1,5 @@
-//! Writing a tiled (or stripped) GeoTIFF by bands of rows, one row of tiles in memory
+//! Writing a tiled (or stripped) GeoTIFF by bands of rows, one row of tiles in memory,
+//! or by blocks of whole tiles in any order, one block in memory
 //! ([`TiledGeoTiffWriter`]).
 //!
 //! The `tiff` crate (0.11) writes strips only, and its strip-at-a-time writer
@@ -7,8 +8,8 @@
 //! compressor, and written through the crate's directory encoder, which also writes the
 //! tags: the chunk offsets and byte counts and the GeoTIFF tags of the whole-raster
 //! writer. That encoder borrows the file for the life of the image directory, across
-//! calls, so it lives on a writer thread fed compressed rows of chunks over a rendezvous
-//! channel.
+//! calls, so it lives on a writer thread fed compressed chunks (with their indices)
+//! over a rendezvous channel.
 
 use std::io::{self, BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
@@ -28,7 +29,7 @@ use super::{check_raster, DemError, DemInfo};
 use crate::atomic::AtomicFile;
 
 /// A tiled, Deflate-compressed GeoTIFF written by bands of rows in row order, holding one
-/// row of tiles; written to a temporary file renamed into place by
+/// row of tiles, or by blocks of whole tiles in any order; written to a temporary file renamed into place by
 /// [`TiledGeoTiffWriter::finish`] (dropped unfinished, it leaves nothing behind).
 /// [`TiledGeoTiffWriter::create_striped`] writes strips the same way.
 pub struct TiledGeoTiffWriter {
@@ -37,9 +38,14 @@ pub struct TiledGeoTiffWriter {
     height: usize,
     sample_type: SampleType,
     chunks: Chunking,
-    /// Rows received so far.
+    /// Rows received so far ([`TiledGeoTiffWriter::write_rows`]).
     rows_received: usize,
-    /// The row of chunks being gathered: a chunk's height of rows of `width` samples.
+    /// Chunks sent to the writer thread, by index (rows or blocks).
+    sent: Vec<bool>,
+    /// Blocks were given ([`TiledGeoTiffWriter::write_block`]): rows may not be.
+    by_blocks: bool,
+    /// The row of chunks being gathered: a chunk's height of rows of `width` samples
+    /// (allocated by the first rows given).
     gathering: Samples,
     /// Rows of `gathering` filled.
     gathered: usize,
@@ -49,8 +55,8 @@ pub struct TiledGeoTiffWriter {
 
 /// What the writer thread receives.
 enum Message {
-    /// One row of chunks, compressed, left to right.
-    ChunkRow(Vec<Vec<u8>>),
+    /// Compressed chunks and their indices (row-major), in any order.
+    Chunks(Vec<(usize, Vec<u8>)>),
     /// Every chunk was sent: write the directory.
     Finish,
 }
@@ -69,6 +75,14 @@ impl Chunking {
     fn rows(self) -> usize {
         match self {
             Chunking::Tiles(n) | Chunking::Strips(n) => n as usize,
+        }
+    }
+
+    /// Chunks across a raster `width` samples wide.
+    fn across(self, width: usize) -> usize {
+        match self {
+            Chunking::Tiles(n) => width.div_ceil(n as usize),
+            Chunking::Strips(_) => 1,
         }
     }
 }
@@ -130,7 +144,9 @@ impl TiledGeoTiffWriter {
             sample_type: info.sample_type,
             chunks,
             rows_received: 0,
-            gathering: zeroed_samples(info.sample_type, info.width * chunks.rows()),
+            sent: vec![false; chunks.across(info.width) * info.height.div_ceil(chunks.rows())],
+            by_blocks: false,
+            gathering: zeroed_samples(info.sample_type, 0),
             gathered: 0,
             chunks_out: Some(chunks_out),
             worker: Some(worker),
@@ -141,6 +157,9 @@ impl TiledGeoTiffWriter {
     /// raster and of its sample type; any band height works.
     pub fn write_rows(&mut self, y0: usize, band: &Raster) -> Result<(), DemError> {
         self.check_band(y0, band)?;
+        if self.gathering.is_empty() {
+            self.gathering = zeroed_samples(self.sample_type, self.width * self.chunks.rows());
+        }
         let row_bytes = self.width * self.sample_type.bytes();
         let mut done = 0;
         while done < band.height {
@@ -159,10 +178,95 @@ impl TiledGeoTiffWriter {
         Ok(())
     }
 
+    /// Adds `band` at (`x0`, `y0`), a block of whole tiles of a tiled file: its corner
+    /// on a tile's corner, its sides multiples of the tile side or reaching the raster's
+    /// edge. Blocks come in any order, each tile once; memory holds the block only, so a
+    /// file can be written in blocks narrower than the raster. Not mixed with
+    /// [`TiledGeoTiffWriter::write_rows`].
+    pub fn write_block(&mut self, (x0, y0): (usize, usize), band: &Raster) -> Result<(), DemError> {
+        let indices = self.check_block((x0, y0), band)?;
+        self.by_blocks = true;
+        let Chunking::Tiles(tile) = self.chunks else {
+            unreachable!("check_block refuses strips")
+        };
+        let tile = tile as usize;
+        let row_bytes = band.width * self.sample_type.bytes();
+        let io_error = |source| DemError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut chunks = Vec::with_capacity(indices.len());
+        for y in (0..band.height).step_by(tile) {
+            let rows = tile.min(band.height - y);
+            let source = &bytes(&band.samples)[y * row_bytes..(y + rows) * row_bytes];
+            let compressed =
+                compress_chunk_row(source, self.sample_type, rows, band.width, self.chunks)
+                    .map_err(io_error)?;
+            chunks.extend(compressed);
+        }
+        for &k in &indices {
+            self.sent[k] = true;
+        }
+        self.send(Message::Chunks(indices.into_iter().zip(chunks).collect()))
+    }
+
+    /// The chunk indices of a block [`TiledGeoTiffWriter::write_block`] may take, row by
+    /// row; an error for anything else.
+    fn check_block(&self, (x0, y0): (usize, usize), band: &Raster) -> Result<Vec<usize>, DemError> {
+        check_raster(band)?;
+        let Chunking::Tiles(tile) = self.chunks else {
+            return Err(self.misuse("blocks given to a stripped file".into()));
+        };
+        let tile = tile as usize;
+        let fits = |start: usize, len: usize, side: usize| {
+            start.is_multiple_of(tile)
+                && len > 0
+                && start
+                    .checked_add(len)
+                    .is_some_and(|end| end <= side && (end == side || len.is_multiple_of(tile)))
+        };
+        if band.sample_type() != self.sample_type {
+            return Err(self.misuse(format!("a block of {} samples", band.sample_type().name())));
+        }
+        if self.rows_received > 0
+            || !fits(x0, band.width, self.width)
+            || !fits(y0, band.height, self.height)
+        {
+            return Err(self.misuse(format!(
+                "a block of {}x{} at ({x0}, {y0}) is not whole tiles of {tile} of a {}x{} raster \
+                 written by blocks",
+                band.width, band.height, self.width, self.height
+            )));
+        }
+        let across = self.chunks.across(self.width);
+        let indices: Vec<usize> = (y0 / tile..(y0 + band.height).div_ceil(tile))
+            .flat_map(|r| {
+                (x0 / tile..(x0 + band.width).div_ceil(tile)).map(move |c| r * across + c)
+            })
+            .collect();
+        if let Some(k) = indices.iter().find(|&&k| self.sent[k]) {
+            return Err(self.misuse(format!("tile {k} given twice")));
+        }
+        Ok(indices)
+    }
+
+    /// A misuse of the writer, named with its file.
+    fn misuse(&self, problem: String) -> DemError {
+        DemError::InvalidRaster(format!("{}: {problem}", self.path.display()))
+    }
+
     /// Writes the directory and renames the file into place; an error when rows are
     /// missing (and then nothing is left behind).
     pub fn finish(mut self) -> Result<(), DemError> {
-        if self.rows_received != self.height {
+        if self.by_blocks {
+            let written = self.sent.iter().filter(|&&s| s).count();
+            if written != self.sent.len() {
+                return Err(self.misuse(format!(
+                    "finished with {written} of {} tiles written",
+                    self.sent.len()
+                )));
+            }
+        } else if self.rows_received != self.height {
             return Err(DemError::InvalidRaster(format!(
                 "{}: finished after {} of {} rows",
                 self.path.display(),
@@ -182,7 +286,9 @@ impl TiledGeoTiffWriter {
     /// Refuses a band of another width or type, out of row order or past the last row.
     fn check_band(&self, y0: usize, band: &Raster) -> Result<(), DemError> {
         check_raster(band)?;
-        let problem = if band.width != self.width || band.sample_type() != self.sample_type {
+        let problem = if self.by_blocks {
+            "rows given to a file written by blocks".to_string()
+        } else if band.width != self.width || band.sample_type() != self.sample_type {
             format!(
                 "a band of {} {} samples a row for a raster of {} {} samples a row",
                 band.width,
@@ -212,15 +318,26 @@ impl TiledGeoTiffWriter {
 
     /// Compresses the gathered row of chunks and hands it to the writer thread.
     fn send_chunk_row(&mut self) -> Result<(), DemError> {
-        let compressed =
-            compress_chunk_row(&self.gathering, self.gathered, self.width, self.chunks).map_err(
-                |source| DemError::Io {
-                    path: self.path.clone(),
-                    source,
-                },
-            )?;
+        let rows = self.gathered * self.width * self.sample_type.bytes();
+        let source = &bytes(&self.gathering)[..rows];
+        let compressed = compress_chunk_row(
+            source,
+            self.sample_type,
+            self.gathered,
+            self.width,
+            self.chunks,
+        )
+        .map_err(|source| DemError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
         self.gathered = 0;
-        self.send(Message::ChunkRow(compressed))
+        let first = (self.rows_received - 1) / self.chunks.rows() * self.chunks.across(self.width);
+        for k in first..first + compressed.len() {
+            self.sent[k] = true;
+        }
+        let indexed = (first..).zip(compressed).collect();
+        self.send(Message::Chunks(indexed))
     }
 
     /// Sends to the writer thread; when it has stopped, its error.
@@ -371,17 +488,23 @@ fn write_image<W: Write + Seek, K: TiffKind>(
 ) -> tiff::TiffResult<bool> {
     let mut encoder = encoder?;
     let mut dir = encoder.image_directory()?;
-    let mut offsets = Vec::new();
-    let mut byte_counts = Vec::new();
+    let count = layout.chunks.across(layout.width as usize)
+        * (layout.height as usize).div_ceil(layout.chunks.rows());
+    let mut offsets = vec![0u64; count];
+    let mut byte_counts = vec![0u64; count];
     for message in chunks_in {
         match message {
-            Message::ChunkRow(compressed) => {
-                for chunk in compressed {
-                    offsets.push(K::convert_offset(dir.write_data(&chunk[..])?)?);
-                    byte_counts.push(K::convert_offset(chunk.len() as u64)?);
+            Message::Chunks(compressed) => {
+                for (k, chunk) in compressed {
+                    offsets[k] = dir.write_data(&chunk[..])?;
+                    byte_counts[k] = chunk.len() as u64;
                 }
             }
             Message::Finish => {
+                let convert = |values: &[u64]| -> tiff::TiffResult<Vec<K::OffsetType>> {
+                    values.iter().map(|&v| K::convert_offset(v)).collect()
+                };
+                let (offsets, byte_counts) = (convert(&offsets)?, convert(&byte_counts)?);
                 layout.write_tags(&mut dir)?;
                 tags.write(&mut dir)?;
                 let (offsets_tag, byte_counts_tag) = layout.offset_tags();
@@ -406,10 +529,12 @@ fn write_error(path: &Path, e: TiffError) -> DemError {
     }
 }
 
-/// Cuts the first `rows` rows of `gathered` (`width` samples a row) into chunks, left to
-/// right, and compresses each: tiles padded with zeros to full tiles, a strip of `rows`.
+/// Cuts `source` (`rows` rows of `width` samples of `sample_type`, native byte order) into
+/// chunks, left to right, and compresses each: tiles padded with zeros to full tiles, a
+/// strip of `rows`.
 fn compress_chunk_row(
-    gathered: &Samples,
+    source: &[u8],
+    sample_type: SampleType,
     rows: usize,
     width: usize,
     chunks: Chunking,
@@ -418,15 +543,14 @@ fn compress_chunk_row(
         Chunking::Tiles(tile) => (tile as usize, tile as usize),
         Chunking::Strips(_) => (width, rows),
     };
-    let sample_bytes = gathered.sample_type().bytes();
+    let sample_bytes = sample_type.bytes();
     let row_bytes = width * sample_bytes;
-    let mut block = zeroed_samples(gathered.sample_type(), chunk_width * chunk_rows);
+    let mut block = zeroed_samples(sample_type, chunk_width * chunk_rows);
     let mut compressed = Vec::with_capacity(width.div_ceil(chunk_width));
     for x0 in (0..width).step_by(chunk_width) {
         let used = (width - x0).min(chunk_width) * sample_bytes;
         let block_bytes = bytes_mut(&mut block);
         block_bytes.fill(0);
-        let source = &bytes(gathered)[..rows * row_bytes];
         for (dest, row) in block_bytes
             .chunks_exact_mut(chunk_width * sample_bytes)
             .zip(source.chunks_exact(row_bytes))
@@ -502,8 +626,9 @@ mod tests {
         let mut layout = Layout::new(&info, Chunking::Tiles(32)).unwrap();
         layout.big = true;
         let (send, receive) = sync_channel(2);
-        let row = compress_chunk_row(&raster.samples, 30, 40, layout.chunks).unwrap();
-        send.send(Message::ChunkRow(row)).unwrap();
+        let source = bytes(&raster.samples);
+        let row = compress_chunk_row(source, SampleType::I16, 30, 40, layout.chunks).unwrap();
+        send.send(Message::Chunks(row.into_iter().enumerate().collect())).unwrap();
         send.send(Message::Finish).unwrap();
         let file = AtomicFile::create(&path).unwrap();
         let tags = GeoTags::new(&info).unwrap();

@@ -154,6 +154,29 @@ impl TileGrid {
         }
     }
 
+    /// The samples of tiles `columns` (tile columns) of row `row`, overlap left out.
+    pub fn block(&self, row: usize, columns: std::ops::Range<usize>) -> Window {
+        let first = self.tile(row * self.columns() + columns.start);
+        let last = self.tile(row * self.columns() + columns.end.max(columns.start + 1) - 1);
+        Window {
+            width: last.x + last.width - first.x,
+            ..first
+        }
+    }
+
+    /// Runs of `per_block` tiles (the last of a row narrower) of each tile row, in file
+    /// order: row by row, left to right, as (row, tile columns).
+    pub fn blocks(&self, per_block: usize) -> Vec<(usize, std::ops::Range<usize>)> {
+        let (columns, per_block) = (self.columns(), per_block.max(1));
+        (0..self.rows())
+            .flat_map(|row| {
+                (0..columns)
+                    .step_by(per_block)
+                    .map(move |c| (row, c..(c + per_block).min(columns)))
+            })
+            .collect()
+    }
+
     /// The tiles of row `row`, by index.
     pub fn row(&self, row: usize) -> std::ops::Range<usize> {
         row * self.columns()..(row + 1) * self.columns()
