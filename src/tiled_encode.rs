@@ -42,25 +42,9 @@ pub struct TiledEncoded {
     pub tiles: Vec<TileSummary>,
 }
 
-/// The command line's block width for [`encode_tiled`]: samples across a band of tiles
-/// read at once when the source reads columns cheaply (a tiled TIFF decodes only the
-/// tiles a window touches), so a band costs about this many columns however wide the
-/// raster.
-pub const BLOCK_WIDTH: usize = 8192;
-
 /// Tiles of one tile row coded from one band of samples: (tile row, tile columns),
 /// as [`TileGrid::blocks`] gives them.
 type Block = (usize, Range<usize>);
-
-/// Tile columns a block spans: about `block_width` samples when the source reads
-/// columns cheaply, else the whole row (a strip is decoded at full width anyway).
-fn block_columns(bands: &RowBands, grid: &TileGrid, block_width: usize) -> usize {
-    if bands.reads_columns() {
-        (block_width / grid.tile_width).clamp(1, grid.columns())
-    } else {
-        grid.columns()
-    }
-}
 
 /// Encodes the raster `bands` reads (described by `info`: its [`RowBands::info`],
 /// perhaps with metadata left out) as a tiled file on `grid` into `output` (written
@@ -85,7 +69,7 @@ pub fn encode_tiled(
     let mut spool = tempfile::tempfile()?;
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
-    let blocks = grid.blocks(block_columns(bands, grid, block_width));
+    let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
     let mut band = read_block(bands, grid, &blocks[0], None)?;
     for (k, block) in blocks.iter().enumerate() {
         let next = blocks.get(k + 1);

@@ -378,6 +378,52 @@ fn output_bytes_do_not_depend_on_threads_and_budgets_are_shared() {
     );
 }
 
+#[test]
+fn blocks_narrower_than_the_raster_give_the_same_files() {
+    use wavemesh::dem::{ReadOptions, RowBands};
+    use wavemesh::mesh::tiled::{write_tile_meshes, TileMeshOptions, TileTarget};
+    let dir = scratch("tile_meshes");
+    let dem = dir.path().join("tiled.tif");
+    support::stdout(&[
+        "synth",
+        s(&dem),
+        "--size",
+        "300x280",
+        "--seed",
+        "5",
+        "--tile",
+        "64",
+    ]);
+    let run = |block_width: usize| {
+        let mut bands = RowBands::open(&dem, &ReadOptions::default()).unwrap();
+        let info = bands.info().clone();
+        let placement = wavemesh::mesh::export::Placement::pixel(1.0);
+        let target = TileTarget::Tolerance {
+            error: 3.0,
+            plane: None,
+        };
+        let mut options = TileMeshOptions::new(&info, placement, target);
+        (options.tile, options.block_width) = (100, block_width);
+        let out = dir.path().join(format!("blocks-{block_width}"));
+        let mut rows = Vec::new();
+        write_tile_meshes(&mut bands, &out, &options, &mut |k| rows.push(k)).unwrap();
+        assert_eq!(rows, [1, 2, 3], "each tile row reported once");
+        out
+    };
+    // Tiles of 100 x 94, three across: blocks of one tile, of two, and whole rows.
+    let runs = [run(100), run(200), run(usize::MAX)];
+    for name in std::fs::read_dir(&runs[2])
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+    {
+        let whole = std::fs::read(runs[2].join(&name)).unwrap();
+        for run in &runs[..2] {
+            let blocked = std::fs::read(run.join(&name)).unwrap();
+            assert!(blocked == whole, "{name:?} differs in {}", run.display());
+        }
+    }
+}
+
 /// Runs a `mesh --tile-meshes` that must fail with `code` and one line on stderr.
 fn refused(args: &[&str], code: i32) -> String {
     let out = wavemesh(args);

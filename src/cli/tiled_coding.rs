@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use wavemesh::byte_source::FileSource;
-use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter};
-use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError, BLOCK_WIDTH};
+use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter, BLOCK_WIDTH};
+use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{decode_window, DecodeOptions, Raster, TileGrid, Window};
 

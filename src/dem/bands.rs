@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Raster, SampleType, Samples, Window};
+use wavemesh_codec::{Raster, SampleType, Samples, TileGrid, Window};
 
 use super::tiff_chunks::{bytes, bytes_mut, zeroed_samples, ChunkReader};
 use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, SourceFile};
@@ -15,6 +15,11 @@ use super::{geotiff, open_detected, read_dem, DemError, DemFormat, ReadOptions, 
 /// Everything [`read_dem`] puts in a [`Raster`] besides the samples: the codec's
 /// description of a raster, the same one a tiled `.ezw` file's header holds.
 pub type DemInfo = wavemesh_codec::tiles::RasterInfo;
+
+/// Samples across a band of tiles read at once when the source reads columns cheaply
+/// (a tiled TIFF decodes only the tiles a window touches): what the command line uses,
+/// so a band costs about this many columns however wide the raster.
+pub const BLOCK_WIDTH: usize = 8192;
 
 /// Where a [`RowBands`] gets its rows.
 enum BandSource {
@@ -84,6 +89,17 @@ impl RowBands {
         match &self.source {
             BandSource::Chunks(chunks) => chunks.reads_columns(),
             BandSource::Whole(_) => true,
+        }
+    }
+
+    /// Tiles of `grid` a band should span across: about `block_width` samples (at least
+    /// one tile) when the source reads columns cheaply ([`RowBands::reads_columns`]),
+    /// else a whole tile row (a strip is decoded at full width anyway).
+    pub fn tiles_per_block(&self, grid: &TileGrid, block_width: usize) -> usize {
+        if self.reads_columns() {
+            (block_width / grid.tile_width).clamp(1, grid.columns())
+        } else {
+            grid.columns()
         }
     }
 

@@ -24,7 +24,7 @@ mod terrain_rgb;
 mod tiff_chunks;
 mod tiled_writer;
 
-pub use bands::{DemInfo, RowBands};
+pub use bands::{DemInfo, RowBands, BLOCK_WIDTH};
 pub use tiled_writer::TiledGeoTiffWriter;
 
 use std::fs::File;

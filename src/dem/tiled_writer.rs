@@ -628,7 +628,8 @@ mod tests {
         let (send, receive) = sync_channel(2);
         let source = bytes(&raster.samples);
         let row = compress_chunk_row(source, SampleType::I16, 30, 40, layout.chunks).unwrap();
-        send.send(Message::Chunks(row.into_iter().enumerate().collect())).unwrap();
+        send.send(Message::Chunks(row.into_iter().enumerate().collect()))
+            .unwrap();
         send.send(Message::Finish).unwrap();
         let file = AtomicFile::create(&path).unwrap();
         let tags = GeoTags::new(&info).unwrap();

@@ -1,4 +1,4 @@
-//! Meshes of a DEM of any size, one glb per tile, read a tile row at a time.
+//! Meshes of a DEM of any size, one glb per tile, read a block of tiles at a time.
 //!
 //! The DEM is cut on a [`TileGrid`] (as tiled `.ezw` files are). Each tile's mesh covers
 //! its samples plus the first column of its right neighbour and the first row of its
@@ -11,8 +11,9 @@
 //! every sample of every tile (checked); a triangle budget is shared among the tiles in
 //! proportion to their grid cells.
 //!
-//! Memory: one band of rows (a tile row plus the shared row below) is meshed while the
-//! next is read, its tiles on `threads` threads, and each tile's glb is written as soon
+//! Memory: one band (a run of tiles of one tile row, about [`BLOCK_WIDTH`] columns from
+//! a tiled GeoTIFF, a whole tile row from a stripped one, plus the shared column and row)
+//! is meshed while the next is read, its tiles on `threads` threads, and each tile's glb is written as soon
 //! as it is made. The output folder gets `tile_<row>_<column>.glb` files and, last, the
 //! index `tiles.json` ([`INDEX_FILE`]); a run that fails removes the tiles it wrote.
 
@@ -31,7 +32,7 @@ use wavemesh_codec::{CodecError, Raster, TileGrid};
 use super::cells::SplitRule;
 use super::export::{ExportError, Placement};
 use super::FineBorders;
-use crate::dem::{DemError, DemInfo, RowBands};
+use crate::dem::{DemError, DemInfo, RowBands, BLOCK_WIDTH};
 pub use tile::{has_valid_cell, tile_file_name, TileMeshSummary};
 use tile::{mesh_tile, MeshedTile, TileSpot};
 
@@ -81,6 +82,10 @@ pub struct TileMeshOptions {
     pub centre: [f64; 2],
     /// Threads meshing tiles at once (0: one per core). The output does not depend on it.
     pub threads: usize,
+    /// Samples across a band of tiles read at once from a source that reads columns
+    /// cheaply (a tiled GeoTIFF; [`BLOCK_WIDTH`] by default). The output does not depend
+    /// on it.
+    pub block_width: usize,
 }
 
 impl TileMeshOptions {
@@ -95,6 +100,7 @@ impl TileMeshOptions {
             placement,
             centre: [middle[0], middle[1]],
             threads: 0,
+            block_width: BLOCK_WIDTH,
         }
     }
 }
@@ -273,7 +279,11 @@ fn remove_outputs(folder: &Path, grid: &TileGrid, created: bool) {
     }
 }
 
-/// Meshes and writes the tiles row by row, reading the next band while one is meshed.
+/// Tiles of one tile row meshed from one band: (tile row, tile columns), as
+/// [`TileGrid::blocks`] gives them.
+type Block = (usize, std::ops::Range<usize>);
+
+/// Meshes and writes the tiles block by block, reading the next band while one is meshed.
 fn mesh_rows(
     bands: &mut RowBands,
     grid: &TileGrid,
@@ -286,15 +296,17 @@ fn mesh_rows(
         .build()
         .map_err(|_| TileMeshError::Threads(options.threads))?;
     let mut tiles = Vec::with_capacity(grid.count());
-    let mut band = read_band(bands, grid, 0)?;
-    for row in 0..grid.rows() {
+    let blocks = grid.blocks(bands.tiles_per_block(grid, options.block_width));
+    let mut band = read_band(bands, grid, &blocks[0])?;
+    for (k, block) in blocks.iter().enumerate() {
         let (meshed, next) = std::thread::scope(|scope| {
             let reader = scope.spawn(|| {
-                (row + 1 < grid.rows())
-                    .then(|| read_band(bands, grid, row + 1))
+                blocks
+                    .get(k + 1)
+                    .map(|next| read_band(bands, grid, next))
                     .transpose()
             });
-            let meshed = pool.install(|| mesh_band(&band, grid, row, folder, options));
+            let meshed = pool.install(|| mesh_band(&band, grid, block, folder, options));
             (
                 meshed,
                 reader.join().expect("the band reader does not panic"),
@@ -304,7 +316,9 @@ fn mesh_rows(
         if let Some(next) = next? {
             band = next;
         }
-        rows_done(row + 1);
+        if block.1.end == grid.columns() {
+            rows_done(block.0 + 1);
+        }
     }
     if tiles.iter().all(|t| t.file.is_none()) {
         return Err(TileMeshError::NothingToMesh {
@@ -323,21 +337,24 @@ fn mesh_rows(
     })
 }
 
-/// Meshes the tiles of tile row `row` (its samples and the shared row below are `band`)
-/// in parallel and writes their glbs; their summaries in column order.
+/// Meshes the tiles of `block` (their samples and the shared column and row are `band`,
+/// from [`read_band`]) in parallel and writes their glbs; their summaries in column
+/// order.
 fn mesh_band(
     band: &Raster,
     grid: &TileGrid,
-    row: usize,
+    (row, columns): &Block,
     folder: &Path,
     options: &TileMeshOptions,
 ) -> Result<Vec<TileMeshSummary>, TileMeshError> {
     let cell_total = (grid.width as u64 - 1).max(1) * (grid.height as u64 - 1).max(1);
-    grid.row(row)
+    let band_x = grid.block(*row, columns.clone()).x;
+    let first = row * grid.columns();
+    (first + columns.start..first + columns.end)
         .into_par_iter()
         .map(|index| {
             let spot = tile_spot(grid, index);
-            let MeshedTile { summary, glb } = mesh_tile(band, spot, options, cell_total)?;
+            let MeshedTile { summary, glb } = mesh_tile((band, band_x), spot, options, cell_total)?;
             if let (Some(glb), Some(name)) = (glb, &summary.file) {
                 let path = folder.join(name);
                 crate::atomic::write_atomic(&path, |w| w.write_all(&glb))
@@ -372,11 +389,19 @@ fn tile_spot(grid: &TileGrid, index: usize) -> TileSpot {
     }
 }
 
-/// The rows tile row `row` meshes: its own and the first of the next tile row.
-fn read_band(bands: &mut RowBands, grid: &TileGrid, row: usize) -> Result<Raster, DemError> {
-    let y = row * grid.tile_height;
-    let rows = grid.tile_height.min(grid.height - y) + usize::from(row + 1 < grid.rows());
-    bands.read_rows(y, rows)
+/// The samples `block` meshes: its tiles' and the first column and row of the tiles
+/// right of and below it.
+fn read_band(
+    bands: &mut RowBands,
+    grid: &TileGrid,
+    (row, columns): &Block,
+) -> Result<Raster, DemError> {
+    let tiles = grid.block(*row, columns.clone());
+    bands.read_window(Window {
+        width: tiles.width + usize::from(columns.end < grid.columns()),
+        height: tiles.height + usize::from(row + 1 < grid.rows()),
+        ..tiles
+    })
 }
 
 /// Writes the index into `folder`, atomically.

@@ -63,16 +63,17 @@ pub(super) struct MeshedTile {
     pub glb: Option<Vec<u8>>,
 }
 
-/// Meshes the tile at `spot` out of `band` (the whole DEM's rows from `spot.window.y`);
-/// `cell_total` is the DEM's number of grid cells (for a budget's share).
+/// Meshes the tile at `spot` out of `band` (the DEM's samples from row `spot.window.y`
+/// and column `band_x`); `cell_total` is the DEM's number of grid cells (for a budget's
+/// share).
 pub(super) fn mesh_tile(
-    band: &Raster,
+    (band, band_x): (&Raster, usize),
     spot: TileSpot,
     options: &TileMeshOptions,
     cell_total: u64,
 ) -> Result<MeshedTile, TileMeshError> {
     let w = spot.window;
-    let raster = band.crop(w.x, 0, w.width, w.height);
+    let raster = band.crop(w.x - band_x, 0, w.width, w.height);
     let mut summary = TileMeshSummary::empty(spot);
     if !has_valid_cell(&raster) {
         return Ok(MeshedTile { summary, glb: None });
