@@ -59,11 +59,19 @@ impl Output {
     ) -> Result<(), CodecError> {
         let start = layout.offsets[k];
         let area = layout.grid.coded(k);
-        let misfit = |d: &Decoded| (d.raster.width, d.raster.height) != (area.width, area.height);
+        let misfit = |d: &Decoded| {
+            (d.raster.width, d.raster.height, d.raster.sample_type())
+                != (area.width, area.height, self.raster.sample_type())
+        };
         let result = match result {
             Ok(d) if misfit(&d) => Err(CodecError::InvalidHeader(format!(
-                "tile {k} is {}x{}, not {}x{}",
-                d.raster.width, d.raster.height, area.width, area.height
+                "tile {k} is {}x{} {}, not {}x{} {}",
+                d.raster.width,
+                d.raster.height,
+                d.raster.sample_type().name(),
+                area.width,
+                area.height,
+                self.raster.sample_type().name()
             ))),
             other => other,
         };
