@@ -5,6 +5,7 @@
 //! This build writes version 2 ([`v2`]: compact, with metadata) and reads versions 1
 //! ([`v1`]) and 2; everything after the header is the same in both.
 
+mod number;
 mod v1;
 mod v2;
 

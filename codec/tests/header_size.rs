@@ -35,8 +35,9 @@ fn gdal_epsg4326() -> Georef {
 }
 
 /// (name, raster, options, whether the size targets apply): they do for integer rasters,
-/// lossless or 9/7; float rasters (f32 offsets and ranges) and max-error streams (a
-/// correction step) take a few bytes more, shown with `--nocapture`.
+/// lossless or 9/7; float rasters off any grid (f32 ranges: 40–44 bytes without
+/// georeferencing) and max-error streams (a coefficient step and a correction step:
+/// 40–46) take a few bytes more, shown with `--nocapture`.
 fn cases() -> Vec<(String, Raster, EncodeOptions, bool)> {
     let mut cases = Vec::new();
     for (w, h) in [(120, 91), (128, 128), (700, 500)] {

@@ -2,6 +2,7 @@
 //! EPSG-coded form of the georeferencing and an optional metadata block.
 //! `codec/FORMAT.md` gives the byte layout.
 
+use super::number::{short_value, write_number};
 use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader, Tiling};
 use crate::error::CodecError;
 use crate::ezw::Coder;
@@ -386,26 +387,6 @@ fn parse_tiled(
     })
 }
 
-/// Appends `value` as a *number*: a varint whose low two bits say what it holds —
-/// 0: an integer (zigzag, in the bits above); 1: ±infinity (+ when the bits above are
-/// 0, − when 1); 2: the eight bytes of an f64 follow; 3: the four bytes of an f32 follow
-/// (for 2 and 3 the bits above are 0).
-fn write_number(out: &mut Vec<u8>, value: f64) {
-    const EXACT: f64 = (1u64 << 53) as f64;
-    if value.fract() == 0.0 && value.abs() <= EXACT && !(value == 0.0 && value.is_sign_negative()) {
-        let i = value as i64;
-        write_varint(out, (((i << 1) ^ (i >> 63)) as u64) << 2);
-    } else if value.is_infinite() {
-        write_varint(out, if value > 0.0 { 1 } else { 1 | 1 << 2 });
-    } else if f64::from(value as f32).to_bits() == value.to_bits() {
-        write_varint(out, 3);
-        out.extend_from_slice(&(value as f32).to_bits().to_le_bytes());
-    } else {
-        write_varint(out, 2);
-        out.extend_from_slice(&value.to_bits().to_le_bytes());
-    }
-}
-
 fn write_string(out: &mut Vec<u8>, text: &str) {
     write_varint(out, text.len() as u64);
     out.extend_from_slice(text.as_bytes());
@@ -711,8 +692,9 @@ impl Reader<'_> {
         let v = self.varint()?;
         match (v & 3, v >> 2) {
             (0, z) => Ok(((z >> 1) as i64 ^ -((z & 1) as i64)) as f64),
-            (1, 0) => Ok(f64::INFINITY),
-            (1, 1) => Ok(f64::NEG_INFINITY),
+            (1, p) => {
+                short_value(p).ok_or_else(|| CodecError::InvalidHeader(format!("number code {v}")))
+            }
             (2, 0) => self.f64(),
             (3, 0) => Ok(f64::from(f32::from_bits(self.u32()?))),
             _ => Err(CodecError::InvalidHeader(format!("number code {v}"))),
