@@ -5,6 +5,8 @@
 //! Nodes are those of [`wavemesh_codec::significance`]: node `(m, i, j)` is the cell with
 //! corner samples `i·2^m ..= (i+1)·2^m` by `j·2^m ..= (j+1)·2^m`, clipped to the grid.
 
+use std::sync::Arc;
+
 use bitvec::prelude::*;
 use wavemesh_codec::significance::nodes_along;
 
@@ -271,14 +273,38 @@ impl Heights<'_> {
     }
 }
 
+/// Which samples are valid, as the partitions built on a [`VoidPyramid`] keep it (a
+/// shared handle: cloning it copies no bits). It tells which corners of a grid cell its
+/// triangles may use.
+#[derive(Debug, Clone)]
+pub struct SampleValidity {
+    width: usize,
+    valid: Arc<BitVec<u64, Lsb0>>,
+}
+
+impl SampleValidity {
+    /// The valid corners of grid cell (`i`, `j`): bit 0 top-left, 1 top-right,
+    /// 2 bottom-right, 3 bottom-left (the cell's ring order).
+    #[inline]
+    pub fn cell_corners(&self, i: usize, j: usize) -> u8 {
+        let top = j * self.width + i;
+        let bottom = top + self.width;
+        let bit = |s: usize| u8::from(self.valid[s]);
+        bit(top) | bit(top + 1) << 1 | bit(bottom + 1) << 2 | bit(bottom) << 3
+    }
+}
+
 /// For every node, whether its closed sample range holds a nodata sample: such nodes
-/// always split, and void level-0 cells are left out of the mesh.
+/// always split. A void grid cell (level 0) with three valid corners is meshed as the
+/// one triangle of those corners; one with fewer is left out of the mesh.
 #[derive(Debug, Clone)]
 pub struct VoidPyramid {
     width: usize,
     height: usize,
     /// Index `m` for level `m` (0 = grid cells).
     levels: Vec<BitVec<u64, Lsb0>>,
+    /// The validity of every sample.
+    validity: SampleValidity,
 }
 
 impl VoidPyramid {
@@ -321,6 +347,10 @@ impl VoidPyramid {
             width,
             height,
             levels: pyramid,
+            validity: SampleValidity {
+                width,
+                valid: Arc::new(valid.to_bitvec()),
+            },
         })
     }
 
@@ -329,6 +359,11 @@ impl VoidPyramid {
     pub fn is_void(&self, level: u32, i: usize, j: usize) -> bool {
         let nw = nodes_along(self.width, level);
         self.levels[level as usize][j * nw + i]
+    }
+
+    /// The validity of every sample, for the partitions built on this pyramid.
+    pub fn validity(&self) -> &SampleValidity {
+        &self.validity
     }
 
     /// Grid size the pyramid describes.

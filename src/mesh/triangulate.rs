@@ -10,6 +10,10 @@
 //! off that side's line, so none is degenerate. In the [`Shape::Fan`] shape it gets
 //! `k + 4`: one triangle from the centre sample to each boundary segment.
 //!
+//! A grid cell with a nodata corner (its coarser ancestors all split, so no neighbour puts
+//! a vertex on its sides) is the one triangle of its three valid corners, or nothing when
+//! fewer are valid. Its neighbours share the sides whose ends are both valid.
+//!
 //! The cost is proportional to the output: each leaf looks at its four same-level
 //! neighbours' split bits and walks down only into split ones.
 
@@ -113,10 +117,7 @@ pub fn cell_triangles(
     let (tl, tr) = (sample(x0, y0), sample(x1, y0));
     let (bl, br) = (sample(x0, y1), sample(x1, y1));
     if cell.level == 0 {
-        // No neighbour is smaller than a grid cell: two triangles (the diagonal does not
-        // change the height at any sample).
-        emit([tl, tr, br]);
-        emit([br, bl, tl]);
+        grid_cell_triangles(tree.valid_corners(cell), [tl, tr, br, bl], emit);
         return 0;
     }
     // The ring: each side's corner, then its hanging vertices in ring order.
@@ -168,6 +169,27 @@ pub fn cell_triangles(
         }
     }
     hanging
+}
+
+/// The triangles of a grid cell with corners `ring` (top-left, top-right, bottom-right,
+/// bottom-left) of which those in bit mask `valid` are valid: two when all four are (no
+/// neighbour is smaller than a grid cell, and the diagonal changes the height at no
+/// sample), the one of the valid corners when three are, none otherwise.
+#[inline]
+fn grid_cell_triangles(valid: u8, ring: [u32; 4], emit: &mut impl FnMut([u32; 3])) {
+    let [tl, tr, br, bl] = ring;
+    match valid {
+        0b1111 => {
+            emit([tl, tr, br]);
+            emit([br, bl, tl]);
+        }
+        // Dropping one corner of the counter-clockwise ring keeps it counter-clockwise.
+        0b1110 => emit([tr, br, bl]),
+        0b1101 => emit([tl, br, bl]),
+        0b1011 => emit([tl, tr, bl]),
+        0b0111 => emit([tl, tr, br]),
+        _ => {}
+    }
 }
 
 /// Triangulates the half-cell bounded by chains `ab` (A … B) and `bc` (B … C) and the
