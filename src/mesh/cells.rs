@@ -271,9 +271,13 @@ impl CellTree {
     }
 
     /// Whether `side` of `cell` lies on a fine border (see [`CellTree::set_fine_borders`]).
+    #[inline]
     pub fn on_fine_border(&self, cell: Cell, side: Side) -> bool {
-        let (x0, y0, x1, y1) = self.bounds(cell);
         let fine = self.fine_borders;
+        if fine == FineBorders::default() {
+            return false;
+        }
+        let (x0, y0, x1, y1) = self.bounds(cell);
         match side {
             Side::Top => fine.top && y0 == 0,
             Side::Right => fine.right && x1 == self.width - 1,

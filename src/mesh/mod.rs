@@ -18,11 +18,13 @@ pub mod tiled;
 pub mod triangulate;
 pub mod varres;
 
+use std::sync::OnceLock;
+
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
 use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
-use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
+use pyramid::{DiagonalPyramid, ErrorPyramid, Heights, Shape, VoidPyramid};
 use rasterise::rasterise_triangle;
 use triangulate::{cell_triangles, Scratch};
 
@@ -63,6 +65,8 @@ pub struct Mesher<'a> {
     heights: Heights<'a>,
     voids: Option<VoidPyramid>,
     errors: Option<ErrorPyramid>,
+    /// The threshold cells' diagonals (computed on the first triangulation).
+    diagonals: OnceLock<DiagonalPyramid>,
     fine_borders: FineBorders,
 }
 
@@ -129,6 +133,7 @@ impl<'a> Mesher<'a> {
             heights,
             voids,
             errors: None,
+            diagonals: OnceLock::new(),
             fine_borders: FineBorders::default(),
         }
     }
@@ -163,9 +168,12 @@ impl<'a> Mesher<'a> {
     /// Triangulates a threshold partition (the triangulation step), every cell as two
     /// triangles along the diagonal [`triangulate::centre_rule`] picks.
     pub fn triangulate(&self, tree: &CellTree) -> GridMesh {
-        let heights = self.heights;
+        let (heights, levels) = (self.heights, self.map.levels());
+        let diagonals = self
+            .diagonals
+            .get_or_init(|| DiagonalPyramid::new(heights, levels));
         triangulate::triangulate(tree, heights, |cell| {
-            triangulate::centre_rule(tree, heights, cell)
+            triangulate::centre_rule(diagonals, cell)
         })
     }
 
