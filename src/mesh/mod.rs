@@ -18,8 +18,6 @@ pub mod tiled;
 pub mod triangulate;
 pub mod varres;
 
-use std::sync::OnceLock;
-
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
@@ -65,8 +63,8 @@ pub struct Mesher<'a> {
     heights: Heights<'a>,
     voids: Option<VoidPyramid>,
     errors: Option<ErrorPyramid>,
-    /// The threshold cells' diagonals (computed on the first triangulation).
-    diagonals: OnceLock<DiagonalPyramid>,
+    /// The threshold cells' diagonals (each level computed on first use).
+    diagonals: DiagonalPyramid<'a>,
     fine_borders: FineBorders,
 }
 
@@ -133,7 +131,7 @@ impl<'a> Mesher<'a> {
             heights,
             voids,
             errors: None,
-            diagonals: OnceLock::new(),
+            diagonals: DiagonalPyramid::new(heights, map.levels()),
             fine_borders: FineBorders::default(),
         }
     }
@@ -168,12 +166,8 @@ impl<'a> Mesher<'a> {
     /// Triangulates a threshold partition (the triangulation step), every cell as two
     /// triangles along the diagonal [`triangulate::centre_rule`] picks.
     pub fn triangulate(&self, tree: &CellTree) -> GridMesh {
-        let (heights, levels) = (self.heights, self.map.levels());
-        let diagonals = self
-            .diagonals
-            .get_or_init(|| DiagonalPyramid::new(heights, levels));
-        triangulate::triangulate(tree, heights, |cell| {
-            triangulate::centre_rule(diagonals, cell)
+        triangulate::triangulate(tree, self.heights, |cell| {
+            triangulate::centre_rule(&self.diagonals, cell)
         })
     }
 

@@ -5,7 +5,7 @@
 //! Nodes are those of [`wavemesh_codec::significance`]: node `(m, i, j)` is the cell with
 //! corner samples `i·2^m ..= (i+1)·2^m` by `j·2^m ..= (j+1)·2^m`, clipped to the grid.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use bitvec::prelude::*;
 use wavemesh_codec::significance::nodes_along;
@@ -274,44 +274,60 @@ impl Heights<'_> {
 }
 
 /// For every node of levels `1..=levels`, the diagonal [`Heights::diagonal`] picks, one
-/// bit a node: computed once, so a triangulation reads one bit a cell instead of five
-/// heights far apart (a cache miss each on a large grid).
-#[derive(Debug, Clone)]
-pub struct DiagonalPyramid {
-    /// Nodes per row, index `m − 1` for level `m`.
-    widths: Vec<usize>,
-    /// Whether the node is cut along its rising diagonal, index `m − 1`.
-    rising: Vec<BitVec<u64, Lsb0>>,
+/// bit a node: a triangulation reads one bit a cell instead of five heights far apart
+/// (a cache miss each on a large grid). A level is computed on its first look-up and
+/// kept, so coarse meshes never pay for the fine levels.
+#[derive(Debug)]
+pub struct DiagonalPyramid<'a> {
+    heights: Heights<'a>,
+    /// Index `m − 1` for level `m`.
+    levels: Vec<OnceLock<DiagonalLevel>>,
 }
 
-impl DiagonalPyramid {
-    /// The diagonals of every node of `heights` up to level `levels`.
-    pub fn new(heights: Heights<'_>, levels: u32) -> DiagonalPyramid {
-        let (w, h) = (heights.width, heights.height);
-        let widths: Vec<usize> = (1..=levels).map(|m| nodes_along(w, m)).collect();
-        let rising = (1..=levels)
-            .map(|m| {
-                let (nw, nh) = (nodes_along(w, m), nodes_along(h, m));
-                (0..nw * nh)
-                    .map(|k| {
-                        let bounds = node_bounds(w, h, m, k % nw, k / nw);
-                        heights.diagonal(bounds) == Diagonal::Rising
-                    })
-                    .collect()
-            })
-            .collect();
-        DiagonalPyramid { widths, rising }
+/// One level of a [`DiagonalPyramid`].
+#[derive(Debug)]
+struct DiagonalLevel {
+    /// Nodes per row.
+    width: usize,
+    /// Bit `k % 64` of word `k / 64` set when node `k` is cut along its rising diagonal.
+    rising: Vec<u64>,
+}
+
+impl<'a> DiagonalPyramid<'a> {
+    /// The diagonals of the nodes of `heights` up to level `levels` (none computed yet).
+    pub fn new(heights: Heights<'a>, levels: u32) -> DiagonalPyramid<'a> {
+        DiagonalPyramid {
+            heights,
+            levels: (1..=levels).map(|_| OnceLock::new()).collect(),
+        }
     }
 
     /// The diagonal of node `(level, i, j)`, `level ≥ 1`.
     #[inline]
     pub fn diagonal(&self, level: u32, i: usize, j: usize) -> Diagonal {
-        let m = level as usize - 1;
-        if self.rising[m][j * self.widths[m] + i] {
+        let nodes = self.levels[level as usize - 1].get_or_init(|| self.compute(level));
+        let k = j * nodes.width + i;
+        if nodes.rising[k / 64] >> (k % 64) & 1 != 0 {
             Diagonal::Rising
         } else {
             Diagonal::Falling
         }
+    }
+
+    fn compute(&self, level: u32) -> DiagonalLevel {
+        let (w, h) = (self.heights.width, self.heights.height);
+        let (nw, nh) = (nodes_along(w, level), nodes_along(h, level));
+        let mut rising = vec![0u64; (nw * nh).div_ceil(64)];
+        for j in 0..nh {
+            for i in 0..nw {
+                let bounds = node_bounds(w, h, level, i, j);
+                if self.heights.diagonal(bounds) == Diagonal::Rising {
+                    let k = j * nw + i;
+                    rising[k / 64] |= 1 << (k % 64);
+                }
+            }
+        }
+        DiagonalLevel { width: nw, rising }
     }
 }
 

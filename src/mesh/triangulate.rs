@@ -105,7 +105,7 @@ pub fn triangulate(
 /// The two-triangle shape with the diagonal [`Heights::diagonal`] picks (read from
 /// `diagonals`): the shape of cells chosen by a threshold.
 #[inline]
-pub fn centre_rule(diagonals: &DiagonalPyramid, cell: Cell) -> Shape {
+pub fn centre_rule(diagonals: &DiagonalPyramid<'_>, cell: Cell) -> Shape {
     if cell.level == 0 {
         Shape::Two(Diagonal::Falling)
     } else {
