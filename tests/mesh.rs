@@ -15,8 +15,8 @@ use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Rast
 /// triangle non-degenerate and counter-clockwise in the grid frame; every directed edge
 /// used once (consistent winding, at most two triangles an edge); every edge with one
 /// triangle on the border of the meshed region (so no crack or T-junction); the triangles
-/// covering exactly the grid cells whose four corners are valid. Returns the triangles'
-/// total area in grid cells.
+/// covering exactly the grid cells whose four corners are valid and half of each grid
+/// cell with three (its one triangle, whose diagonal then borders the region).
 fn check_topology(mesh: &GridMesh, valid: &BitSlice<u64, Lsb0>) -> Result<(), String> {
     let (w, h) = (mesh.width, mesh.height);
     let pos = |v: u32| {
@@ -41,21 +41,31 @@ fn check_topology(mesh: &GridMesh, valid: &BitSlice<u64, Lsb0>) -> Result<(), St
             }
         }
     }
-    // The meshed region: cells with four valid corners.
-    let cell_ok = |x: i64, y: i64| {
-        x >= 0 && y >= 0 && x < w as i64 - 1 && y < h as i64 - 1 && {
-            let s = y as usize * w + x as usize;
-            valid[s] && valid[s + 1] && valid[s + w] && valid[s + w + 1]
+    // The meshed region: cells with three or four valid corners.
+    let valid_corners = |x: i64, y: i64| {
+        if x < 0 || y < 0 || x >= w as i64 - 1 || y >= h as i64 - 1 {
+            return 0;
         }
+        let s = y as usize * w + x as usize;
+        [s, s + 1, s + w, s + w + 1]
+            .into_iter()
+            .filter(|&c| valid[c])
+            .count() as i64
     };
-    let cells = (0..h as i64 - 1)
+    let cell_ok = |x: i64, y: i64| valid_corners(x, y) >= 3;
+    let halves: i64 = (0..h as i64 - 1)
         .flat_map(|y| (0..w as i64 - 1).map(move |x| (x, y)))
-        .filter(|&(x, y)| cell_ok(x, y))
-        .count() as i64;
-    if area2 != 2 * cells {
+        .map(|(x, y)| match valid_corners(x, y) {
+            4 => 2,
+            3 => 1,
+            _ => 0,
+        })
+        .sum();
+    if area2 != halves {
         return Err(format!(
-            "triangles cover {} cells of {cells}",
-            area2 as f64 / 2.0
+            "triangles cover {} cells of {}",
+            area2 as f64 / 2.0,
+            halves as f64 / 2.0
         ));
     }
     for &(a, b) in directed.keys() {
@@ -65,6 +75,12 @@ fn check_topology(mesh: &GridMesh, valid: &BitSlice<u64, Lsb0>) -> Result<(), St
         // A border edge: axis-aligned, with one meshed cell beside each unit step of it.
         let ((ax, ay), (bx, by)) = (pos(a), pos(b));
         if ax != bx && ay != by {
+            if (ax - bx).abs() == 1
+                && (ay - by).abs() == 1
+                && valid_corners(ax.min(bx), ay.min(by)) == 3
+            {
+                continue; // the diagonal of a cell with three valid corners
+            }
             return Err(format!("diagonal edge {a}-{b} has one triangle"));
         }
         let steps = (bx - ax).abs().max((by - ay).abs());

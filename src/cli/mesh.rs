@@ -10,7 +10,7 @@ use wavemesh::lod::{self, build_mesh, decoded_plane, plane_of_threshold, Surface
 use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::export::{write_mesh, MeshFormat, Placement};
 use wavemesh::mesh::frame::FrameError;
-use wavemesh::mesh::rasterise::{mesh_error, MeshError};
+use wavemesh::mesh::rasterise::{mesh_error, uncoverable_samples, MeshError};
 use wavemesh::mesh::tiled::{has_valid_cell, TileTarget};
 use wavemesh::mesh::MeshTarget;
 use wavemesh_codec::{
@@ -256,6 +256,9 @@ pub struct MeshReport {
     error_vs_decoded: MeshError,
     /// Against the original DEM (`--reference`, or the input of `mesh`).
     error_vs_original: Option<MeshError>,
+    /// Valid samples of the decoded DEM no triangle of three valid grid neighbours can
+    /// reach: the least `error_vs_decoded.uncovered_samples` can be (it is that).
+    uncoverable_samples: u64,
     mesh_bytes_in_memory: usize,
     mesh_bytes_paper: f64,
     pyramid_seconds: f64,
@@ -298,6 +301,7 @@ pub fn mesh_decoded(
     }
     let start = Instant::now();
     let error_vs_decoded = mesh_error(mesh, &surface.heights, &surface.heights, &surface.valid);
+    let uncoverable_samples = uncoverable_samples(surface.width, surface.height, &surface.valid);
     let error_vs_original = original.map(|o| {
         let reference = Surface::of(o);
         mesh_error(mesh, &surface.heights, &reference.heights, &reference.valid)
@@ -330,6 +334,7 @@ pub fn mesh_decoded(
         frame: placement.frame_record(),
         error_vs_decoded,
         error_vs_original,
+        uncoverable_samples,
         mesh_bytes_in_memory: mesh.heap_bytes(),
         mesh_bytes_paper: lod::paper_mesh_bytes(mesh.triangles.len(), mesh.vertices.len()),
         pyramid_seconds: timed_mesh.pyramid_seconds,

@@ -3,8 +3,9 @@
 //! Starting from the roots (the nodes of the coarsest level), a node splits into its four
 //! children when the split test says so, down to single grid cells. The tests come from
 //! the decoder's [`SignificanceMap`] (zerotree or own-coefficient rule at a threshold), an
-//! [`ErrorPyramid`] (a height tolerance), or both; nodes touching nodata always split, and
-//! level-0 cells touching nodata are left out.
+//! [`ErrorPyramid`] (a height tolerance), or both; nodes touching nodata always split, a
+//! grid cell (level 0) with three valid corners is the one triangle of those corners, and
+//! one with fewer is left out.
 //!
 //! The partition keeps one split bit per node, so a cell's neighbour at any level is found
 //! in constant time: that is what [`crate::mesh::triangulate`] needs to put the vertices
@@ -14,7 +15,7 @@ use bitvec::prelude::*;
 use wavemesh_codec::significance::nodes_along;
 use wavemesh_codec::SignificanceMap;
 
-use super::pyramid::{node_bounds, ErrorPyramid, VoidPyramid};
+use super::pyramid::{node_bounds, ErrorPyramid, SampleValidity, VoidPyramid};
 use super::FineBorders;
 
 /// Which coefficients decide that a node splits at a threshold.
@@ -113,8 +114,11 @@ pub struct CellTree {
     /// border), index `m − 1`: horizontal sides `(rows + 1) × columns`, then vertical
     /// sides `rows × (columns + 1)`.
     midpoints: Vec<(BitVec<u64, Lsb0>, BitVec<u64, Lsb0>)>,
-    /// The leaves, void level-0 cells excluded, in depth-first order.
+    /// The leaves, grid cells with fewer than three valid corners excluded, in
+    /// depth-first order.
     leaves: Vec<Cell>,
+    /// Which samples are valid, when some are not (from the void pyramid).
+    validity: Option<SampleValidity>,
     /// Sides of the grid along which every sample is a vertex.
     fine_borders: FineBorders,
 }
@@ -144,6 +148,7 @@ impl CellTree {
             split,
             midpoints: Vec::new(),
             leaves: Vec::new(),
+            validity: None,
             fine_borders: FineBorders::default(),
         };
         tree.grow(voids, test);
@@ -182,6 +187,7 @@ impl CellTree {
         mut test: impl FnMut(u32, usize, usize) -> bool,
     ) {
         self.leaves.clear();
+        self.validity = voids.map(|v| v.validity().clone());
         let (rw, rh) = self.nodes(self.levels);
         let mut stack: Vec<Cell> = Vec::with_capacity(4 * self.levels as usize + 4);
         for j in (0..rh).rev() {
@@ -192,13 +198,13 @@ impl CellTree {
         while let Some(cell) = stack.pop() {
             let level = cell.level;
             let (i, j) = cell.position();
-            let void = voids.is_some_and(|v| v.is_void(level, i, j));
             if level == 0 {
-                if !void {
+                if self.is_meshed(cell) {
                     self.leaves.push(cell);
                 }
                 continue;
             }
+            let void = voids.is_some_and(|v| v.is_void(level, i, j));
             let k = self.node_index(level, i, j);
             let words = &mut self.split[level as usize - 1];
             if !(words[k / 64] >> (k % 64) & 1 != 0 || void || test(level, i, j)) {
@@ -214,8 +220,9 @@ impl CellTree {
             if level == 1 {
                 // Grid cells are leaves: no need to go through the stack.
                 for (ci, cj) in children {
-                    if !voids.is_some_and(|v| v.is_void(0, ci, cj)) {
-                        self.leaves.push(Cell::new(0, ci, cj));
+                    let child = Cell::new(0, ci, cj);
+                    if self.is_meshed(child) {
+                        self.leaves.push(child);
                     }
                 }
             } else {
@@ -264,9 +271,13 @@ impl CellTree {
     }
 
     /// Whether `side` of `cell` lies on a fine border (see [`CellTree::set_fine_borders`]).
+    #[inline]
     pub fn on_fine_border(&self, cell: Cell, side: Side) -> bool {
-        let (x0, y0, x1, y1) = self.bounds(cell);
         let fine = self.fine_borders;
+        if fine == FineBorders::default() {
+            return false;
+        }
+        let (x0, y0, x1, y1) = self.bounds(cell);
         match side {
             Side::Top => fine.top && y0 == 0,
             Side::Right => fine.right && x1 == self.width - 1,
@@ -400,7 +411,24 @@ impl CellTree {
         self.split[level as usize - 1][k / 64] >> (k % 64) & 1 != 0
     }
 
-    /// The leaves (void grid cells excluded), depth first.
+    /// The valid corners of grid cell `cell` (level 0), bits as
+    /// [`SampleValidity::cell_corners`]: all four (`0b1111`) when every sample is valid.
+    #[inline]
+    pub fn valid_corners(&self, cell: Cell) -> u8 {
+        let (i, j) = cell.position();
+        self.validity
+            .as_ref()
+            .map_or(0b1111, |v| v.cell_corners(i, j))
+    }
+
+    /// Whether leaf `cell` gives triangles: every node of level ≥ 1 does (it touches no
+    /// nodata), a grid cell when at least three of its corners are valid.
+    #[inline]
+    pub fn is_meshed(&self, cell: Cell) -> bool {
+        cell.level > 0 || self.valid_corners(cell).count_ones() >= 3
+    }
+
+    /// The leaves (grid cells with fewer than three valid corners excluded), depth first.
     pub fn leaves(&self) -> &[Cell] {
         &self.leaves
     }

@@ -22,7 +22,7 @@ use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
 
 use cells::{significant, too_rough, Across, CellTree, Side, SplitRule};
-use pyramid::{ErrorPyramid, Heights, Shape, VoidPyramid};
+use pyramid::{DiagonalPyramid, ErrorPyramid, Heights, Shape, VoidPyramid};
 use rasterise::rasterise_triangle;
 use triangulate::{cell_triangles, Scratch};
 
@@ -63,6 +63,8 @@ pub struct Mesher<'a> {
     heights: Heights<'a>,
     voids: Option<VoidPyramid>,
     errors: Option<ErrorPyramid>,
+    /// The threshold cells' diagonals (each level computed on first use).
+    diagonals: DiagonalPyramid<'a>,
     fine_borders: FineBorders,
 }
 
@@ -129,6 +131,7 @@ impl<'a> Mesher<'a> {
             heights,
             voids,
             errors: None,
+            diagonals: DiagonalPyramid::new(heights, map.levels()),
             fine_borders: FineBorders::default(),
         }
     }
@@ -163,9 +166,8 @@ impl<'a> Mesher<'a> {
     /// Triangulates a threshold partition (the triangulation step), every cell as two
     /// triangles along the diagonal [`triangulate::centre_rule`] picks.
     pub fn triangulate(&self, tree: &CellTree) -> GridMesh {
-        let heights = self.heights;
-        triangulate::triangulate(tree, heights, |cell| {
-            triangulate::centre_rule(tree, heights, cell)
+        triangulate::triangulate(tree, self.heights, |cell| {
+            triangulate::centre_rule(&self.diagonals, cell)
         })
     }
 

@@ -5,6 +5,8 @@
 //! Nodes are those of [`wavemesh_codec::significance`]: node `(m, i, j)` is the cell with
 //! corner samples `i·2^m ..= (i+1)·2^m` by `j·2^m ..= (j+1)·2^m`, clipped to the grid.
 
+use std::sync::{Arc, OnceLock};
+
 use bitvec::prelude::*;
 use wavemesh_codec::significance::nodes_along;
 
@@ -271,14 +273,96 @@ impl Heights<'_> {
     }
 }
 
+/// For every node of levels `1..=levels`, the diagonal [`Heights::diagonal`] picks, one
+/// bit a node: a triangulation reads one bit a cell instead of five heights far apart
+/// (a cache miss each on a large grid). A level is computed on its first look-up and
+/// kept, so coarse meshes never pay for the fine levels.
+#[derive(Debug)]
+pub struct DiagonalPyramid<'a> {
+    heights: Heights<'a>,
+    /// Index `m − 1` for level `m`.
+    levels: Vec<OnceLock<DiagonalLevel>>,
+}
+
+/// One level of a [`DiagonalPyramid`].
+#[derive(Debug)]
+struct DiagonalLevel {
+    /// Nodes per row.
+    width: usize,
+    /// Bit `k % 64` of word `k / 64` set when node `k` is cut along its rising diagonal.
+    rising: Vec<u64>,
+}
+
+impl<'a> DiagonalPyramid<'a> {
+    /// The diagonals of the nodes of `heights` up to level `levels` (none computed yet).
+    pub fn new(heights: Heights<'a>, levels: u32) -> DiagonalPyramid<'a> {
+        DiagonalPyramid {
+            heights,
+            levels: (1..=levels).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// The diagonal of node `(level, i, j)`, `level ≥ 1`.
+    #[inline]
+    pub fn diagonal(&self, level: u32, i: usize, j: usize) -> Diagonal {
+        let nodes = self.levels[level as usize - 1].get_or_init(|| self.compute(level));
+        let k = j * nodes.width + i;
+        if nodes.rising[k / 64] >> (k % 64) & 1 != 0 {
+            Diagonal::Rising
+        } else {
+            Diagonal::Falling
+        }
+    }
+
+    fn compute(&self, level: u32) -> DiagonalLevel {
+        let (w, h) = (self.heights.width, self.heights.height);
+        let (nw, nh) = (nodes_along(w, level), nodes_along(h, level));
+        let mut rising = vec![0u64; (nw * nh).div_ceil(64)];
+        for j in 0..nh {
+            for i in 0..nw {
+                let bounds = node_bounds(w, h, level, i, j);
+                if self.heights.diagonal(bounds) == Diagonal::Rising {
+                    let k = j * nw + i;
+                    rising[k / 64] |= 1 << (k % 64);
+                }
+            }
+        }
+        DiagonalLevel { width: nw, rising }
+    }
+}
+
+/// Which samples are valid, as the partitions built on a [`VoidPyramid`] keep it (a
+/// shared handle: cloning it copies no bits). It tells which corners of a grid cell its
+/// triangles may use.
+#[derive(Debug, Clone)]
+pub struct SampleValidity {
+    width: usize,
+    valid: Arc<BitVec<u64, Lsb0>>,
+}
+
+impl SampleValidity {
+    /// The valid corners of grid cell (`i`, `j`): bit 0 top-left, 1 top-right,
+    /// 2 bottom-right, 3 bottom-left (the cell's ring order).
+    #[inline]
+    pub fn cell_corners(&self, i: usize, j: usize) -> u8 {
+        let top = j * self.width + i;
+        let bottom = top + self.width;
+        let bit = |s: usize| u8::from(self.valid[s]);
+        bit(top) | bit(top + 1) << 1 | bit(bottom + 1) << 2 | bit(bottom) << 3
+    }
+}
+
 /// For every node, whether its closed sample range holds a nodata sample: such nodes
-/// always split, and void level-0 cells are left out of the mesh.
+/// always split. A void grid cell (level 0) with three valid corners is meshed as the
+/// one triangle of those corners; one with fewer is left out of the mesh.
 #[derive(Debug, Clone)]
 pub struct VoidPyramid {
     width: usize,
     height: usize,
     /// Index `m` for level `m` (0 = grid cells).
     levels: Vec<BitVec<u64, Lsb0>>,
+    /// The validity of every sample.
+    validity: SampleValidity,
 }
 
 impl VoidPyramid {
@@ -321,6 +405,10 @@ impl VoidPyramid {
             width,
             height,
             levels: pyramid,
+            validity: SampleValidity {
+                width,
+                valid: Arc::new(valid.to_bitvec()),
+            },
         })
     }
 
@@ -329,6 +417,11 @@ impl VoidPyramid {
     pub fn is_void(&self, level: u32, i: usize, j: usize) -> bool {
         let nw = nodes_along(self.width, level);
         self.levels[level as usize][j * nw + i]
+    }
+
+    /// The validity of every sample, for the partitions built on this pyramid.
+    pub fn validity(&self) -> &SampleValidity {
+        &self.validity
     }
 
     /// Grid size the pyramid describes.
@@ -601,6 +694,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_diagonal_pyramid_holds_every_nodes_centre_rule_diagonal() {
+        let (w, h) = (37, 29);
+        let values: Vec<f64> = (0..w * h)
+            .map(|s| ((s * 7919) % 101) as f64 + 0.1 * (s % w) as f64)
+            .collect();
+        let heights = Heights {
+            width: w,
+            height: h,
+            values: &values,
+        };
+        let pyramid = DiagonalPyramid::new(heights, 4);
+        let mut rising = 0;
+        for m in 1..=4 {
+            for j in 0..nodes_along(h, m) {
+                for i in 0..nodes_along(w, m) {
+                    let expected = heights.diagonal(node_bounds(w, h, m, i, j));
+                    assert_eq!(pyramid.diagonal(m, i, j), expected, "node ({m}, {i}, {j})");
+                    rising += usize::from(expected == Diagonal::Rising);
+                }
+            }
+        }
+        assert!(rising > 0, "both diagonals occur");
     }
 
     #[test]

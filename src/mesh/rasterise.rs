@@ -125,6 +125,29 @@ pub fn mesh_error(
     }
 }
 
+/// Valid samples no mesh on the grid can cover: those that no grid cell with at least
+/// three valid corners has as a corner (the least [`MeshError::uncovered_samples`] a mesh
+/// that never uses a nodata vertex can reach; the zerotree mesh reaches it).
+pub fn uncoverable_samples(width: usize, height: usize, valid: &BitSlice<u64, Lsb0>) -> u64 {
+    assert_eq!(valid.len(), width * height);
+    if valid.all() && width > 1 && height > 1 {
+        return 0;
+    }
+    let mut reachable = bitvec![u64, Lsb0; 0; width * height];
+    for y in 0..height.saturating_sub(1) {
+        for x in 0..width - 1 {
+            let (tl, tr) = (y * width + x, y * width + x + 1);
+            let corners = [tl, tr, tr + width, tl + width];
+            if corners.iter().filter(|&&s| valid[s]).count() >= 3 {
+                for s in corners {
+                    reachable.set(s, true);
+                }
+            }
+        }
+    }
+    (valid.to_bitvec() & !reachable).count_ones() as u64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -141,5 +164,21 @@ mod tests {
             assert!(x + y <= 4);
             assert!((z - (x as f64 + 2.0 * y as f64)).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_sample_is_uncoverable_when_no_cell_around_it_has_three_valid_corners() {
+        // 4 × 3, nodata marked 0:
+        // 1 1 0 1
+        // 1 0 1 0
+        // 1 1 0 1
+        let valid: BitVec<u64, Lsb0> = [1, 1, 0, 1, 1, 0, 1, 0, 1, 1, 0, 1]
+            .iter()
+            .map(|&v| v == 1)
+            .collect();
+        // Cells (0,0) and (0,1) have three valid corners: they reach (0,0), (1,0), (0,1),
+        // (0,2), (1,2). Samples (3,0), (2,1) and (3,2) are valid and reached by none.
+        assert_eq!(uncoverable_samples(4, 3, &valid), 3);
+        assert_eq!(uncoverable_samples(4, 3, &bitvec![u64, Lsb0; 1; 12]), 0);
     }
 }

@@ -10,11 +10,15 @@
 //! off that side's line, so none is degenerate. In the [`Shape::Fan`] shape it gets
 //! `k + 4`: one triangle from the centre sample to each boundary segment.
 //!
+//! A grid cell with a nodata corner (its coarser ancestors all split, so no neighbour puts
+//! a vertex on its sides) is the one triangle of its three valid corners, or nothing when
+//! fewer are valid. Its neighbours share the sides whose ends are both valid.
+//!
 //! The cost is proportional to the output: each leaf looks at its four same-level
 //! neighbours' split bits and walks down only into split ones.
 
 use super::cells::{Cell, CellTree, Side};
-use super::pyramid::{Diagonal, Heights, Shape};
+use super::pyramid::{Diagonal, DiagonalPyramid, Heights, Shape};
 use super::GridMesh;
 
 /// Reusable buffers for triangulating cell after cell.
@@ -47,26 +51,37 @@ pub fn triangulate(
     // Pass 1: triangles over sample indices, marking the samples used in a bitmap (an
     // eighth of a byte a sample: it stays in cache where a per-sample id table would not).
     let mut used = vec![0u64; n.div_ceil(64)];
-    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 2 + 16);
+    // Most cells have two triangles and a few hanging vertices.
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 5 / 2 + 16);
     let mut scratch = Scratch::default();
+    let mut mark_and_push = |t: [u32; 3]| {
+        for s in t {
+            used[s as usize / 64] |= 1 << (s % 64);
+        }
+        triangles.push(t);
+    };
     for &cell in tree.leaves() {
-        cell_triangles(tree, cell, shape(cell), &mut scratch, &mut |t| {
-            for s in t {
-                used[s as usize / 64] |= 1 << (s % 64);
-            }
-            triangles.push(t);
-        });
+        if cell.level == 0 {
+            grid_cell_triangles(
+                tree.valid_corners(cell),
+                grid_cell_ring(width, cell),
+                &mut mark_and_push,
+            );
+        } else {
+            cell_triangles(tree, cell, shape(cell), &mut scratch, &mut mark_and_push);
+        }
     }
-    // Pass 2: a vertex's id is the rank of its sample among the used ones.
-    let mut rank_before = Vec::with_capacity(used.len());
+    // Pass 2: a vertex's id is the rank of its sample among the used ones (each word
+    // beside the count of the bits before it: one cache line a look-up).
+    let mut ranked: Vec<(u64, u32)> = Vec::with_capacity(used.len());
     let mut total = 0u32;
     for &word in &used {
-        rank_before.push(total);
+        ranked.push((word, total));
         total += word.count_ones();
     }
     let rank = |s: u32| {
-        let (w, b) = (s as usize / 64, s % 64);
-        rank_before[w] + (used[w] & ((1u64 << b) - 1)).count_ones()
+        let (word, before) = ranked[s as usize / 64];
+        before + (word & ((1u64 << (s % 64)) - 1)).count_ones()
     };
     for t in &mut triangles {
         *t = [rank(t[0]), rank(t[1]), rank(t[2])];
@@ -87,13 +102,15 @@ pub fn triangulate(
     }
 }
 
-/// The two-triangle shape with the diagonal [`Heights::diagonal`] picks: the shape of
-/// cells chosen by a threshold.
-pub fn centre_rule(tree: &CellTree, heights: Heights<'_>, cell: Cell) -> Shape {
+/// The two-triangle shape with the diagonal [`Heights::diagonal`] picks (read from
+/// `diagonals`): the shape of cells chosen by a threshold.
+#[inline]
+pub fn centre_rule(diagonals: &DiagonalPyramid<'_>, cell: Cell) -> Shape {
     if cell.level == 0 {
         Shape::Two(Diagonal::Falling)
     } else {
-        Shape::Two(heights.diagonal(tree.bounds(cell)))
+        let (i, j) = cell.position();
+        Shape::Two(diagonals.diagonal(cell.level, i, j))
     }
 }
 
@@ -108,17 +125,14 @@ pub fn cell_triangles(
     emit: &mut impl FnMut([u32; 3]),
 ) -> usize {
     let (width, _) = tree.size();
+    if cell.level == 0 {
+        grid_cell_triangles(tree.valid_corners(cell), grid_cell_ring(width, cell), emit);
+        return 0;
+    }
     let (x0, y0, x1, y1) = tree.bounds(cell);
     let sample = |x: usize, y: usize| (y * width + x) as u32;
     let (tl, tr) = (sample(x0, y0), sample(x1, y0));
     let (bl, br) = (sample(x0, y1), sample(x1, y1));
-    if cell.level == 0 {
-        // No neighbour is smaller than a grid cell: two triangles (the diagonal does not
-        // change the height at any sample).
-        emit([tl, tr, br]);
-        emit([br, bl, tl]);
-        return 0;
-    }
     // The ring: each side's corner, then its hanging vertices in ring order.
     let ring = &mut scratch.ring;
     ring.clear();
@@ -168,6 +182,36 @@ pub fn cell_triangles(
         }
     }
     hanging
+}
+
+/// The corner samples of grid cell `cell` (level 0) on a grid `width` samples wide:
+/// top-left, top-right, bottom-right, bottom-left.
+#[inline]
+fn grid_cell_ring(width: usize, cell: Cell) -> [u32; 4] {
+    let tl = (cell.j as usize * width + cell.i as usize) as u32;
+    let bl = tl + width as u32;
+    [tl, tl + 1, bl + 1, bl]
+}
+
+/// The triangles of a grid cell with corners `ring` (top-left, top-right, bottom-right,
+/// bottom-left) of which those in bit mask `valid` are valid: two when all four are (no
+/// neighbour is smaller than a grid cell, and the diagonal changes the height at no
+/// sample), the one of the valid corners when three are, none otherwise.
+#[inline]
+fn grid_cell_triangles(valid: u8, ring: [u32; 4], emit: &mut impl FnMut([u32; 3])) {
+    let [tl, tr, br, bl] = ring;
+    match valid {
+        0b1111 => {
+            emit([tl, tr, br]);
+            emit([br, bl, tl]);
+        }
+        // Dropping one corner of the counter-clockwise ring keeps it counter-clockwise.
+        0b1110 => emit([tr, br, bl]),
+        0b1101 => emit([tl, br, bl]),
+        0b1011 => emit([tl, tr, bl]),
+        0b0111 => emit([tl, tr, br]),
+        _ => {}
+    }
 }
 
 /// Triangulates the half-cell bounded by chains `ab` (A … B) and `bc` (B … C) and the

@@ -42,7 +42,7 @@ impl Surface<'_> {
         if let Some(z) = self.vertex_height(s) {
             return Some(z);
         }
-        let cell = leaf_at(terrain, self.tree, x, y)?;
+        let cell = leaf_at(self.tree, x, y)?;
         let shape = terrain.shape(cell);
         let w = self.mesh.width;
         let mut found = None;
@@ -79,27 +79,28 @@ fn barycentric(p: [(f64, f64); 3], q: (f64, f64)) -> Option<[f64; 3]> {
 }
 
 /// A leaf of `tree` whose closed range holds grid point (`x`, `y`), if one does.
-pub fn leaf_at(terrain: &ViewTerrain<'_>, tree: &CellTree, x: usize, y: usize) -> Option<Cell> {
+pub fn leaf_at(tree: &CellTree, x: usize, y: usize) -> Option<Cell> {
     let (nw, nh) = tree.nodes(0);
     [(0, 0), (1, 0), (0, 1), (1, 1)]
         .into_iter()
         .filter_map(|(a, b)| Some((x.checked_sub(a)?, y.checked_sub(b)?)))
         .filter(|&(cx, cy)| cx < nw && cy < nh)
-        .find_map(|(cx, cy)| leaf_over(terrain, tree, cx, cy))
+        .find_map(|(cx, cy)| leaf_over(tree, cx, cy))
 }
 
-/// The leaf covering grid cell (`cx`, `cy`): `None` when it is a void grid cell.
-fn leaf_over(terrain: &ViewTerrain<'_>, tree: &CellTree, cx: usize, cy: usize) -> Option<Cell> {
+/// The leaf covering grid cell (`cx`, `cy`): `None` when it is a grid cell left out.
+fn leaf_over(tree: &CellTree, cx: usize, cy: usize) -> Option<Cell> {
     let mut level = tree.levels();
     while level > 0 && tree.is_split(level, cx >> level, cy >> level) {
         level -= 1;
     }
-    let (i, j) = (cx >> level, cy >> level);
-    (level > 0 || !terrain.is_void(0, i, j)).then(|| Cell::new(level, i, j))
+    let cell = Cell::new(level, cx >> level, cy >> level);
+    tree.is_meshed(cell).then_some(cell)
 }
 
 /// Counts the cracks of a frame: edges used by more than two triangles, edges used by
-/// one triangle that do not lie on the grid's border or beside a void grid cell, and
+/// one triangle that do not lie on the grid's border, beside a void grid cell or across
+/// one, and
 /// shared edges whose two triangles see different heights at an end (the heights are
 /// read per triangle corner).
 pub fn count_cracks(
@@ -133,7 +134,7 @@ pub fn count_cracks(
 }
 
 /// Whether the edge between vertices `a` and `b` may bound the mesh: along the grid's
-/// border, or a grid-cell side beside a void grid cell.
+/// border, a grid-cell side beside a void grid cell, or a void grid cell's diagonal.
 fn on_boundary(terrain: &ViewTerrain<'_>, mesh: &GridMesh, a: u32, b: u32) -> bool {
     let ((xa, ya), (xb, yb)) = (mesh.vertex_position(a), mesh.vertex_position(b));
     let (w, h) = (mesh.width, mesh.height);
@@ -146,6 +147,9 @@ fn on_boundary(terrain: &ViewTerrain<'_>, mesh: &GridMesh, a: u32, b: u32) -> bo
     } else if xa == xb && ya.abs_diff(yb) == 1 {
         let y = ya.min(yb);
         vec![(xa - 1, y), (xa, y)]
+    } else if xa.abs_diff(xb) == 1 && ya.abs_diff(yb) == 1 {
+        // The diagonal of a grid cell with three valid corners.
+        vec![(xa.min(xb), ya.min(yb))]
     } else {
         return false;
     };

@@ -250,7 +250,7 @@ impl Incremental {
             let (i, j) = child.position();
             let void = terrain.is_void(child.level, i, j);
             if child.level == 0 {
-                if !void {
+                if self.tree.is_meshed(child) {
                     cells.push(child);
                     expiry.push(self.travelled.after(parent_slack));
                 }

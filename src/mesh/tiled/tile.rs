@@ -237,8 +237,8 @@ fn extent(positions: &[f64]) -> ([f64; 3], [f64; 3]) {
     (min, max)
 }
 
-/// Whether some 2 × 2 block of `raster` is all valid samples (the smallest cell the
-/// mesher triangulates).
+/// Whether some 2 × 2 block of `raster` has at least three valid samples (the smallest
+/// mesh is the one triangle of such a grid cell).
 pub fn has_valid_cell(raster: &Raster) -> bool {
     let w = raster.width;
     (1..raster.height).any(|row| {
@@ -247,7 +247,9 @@ pub fn has_valid_cell(raster: &Raster) -> bool {
             let bottom = row * w + col;
             [top - 1, top, bottom - 1, bottom]
                 .iter()
-                .all(|&i| raster.is_valid(i))
+                .filter(|&&i| raster.is_valid(i))
+                .count()
+                >= 3
         })
     })
 }
