@@ -32,6 +32,9 @@ pub struct Incremental {
     last: View,
     /// Corners of the terrain's bounding box.
     extent: [glam::DVec3; 8],
+    /// The last parent evaluated under the current view: a parent's leaves come one after
+    /// another, so it is evaluated once for all of them. Cleared when the view changes.
+    last_parent: std::cell::Cell<Option<(Cell, NodeView)>>,
 }
 
 /// What one update changed.
@@ -74,6 +77,7 @@ impl Incremental {
             travelled: 0.0,
             last: *view,
             extent,
+            last_parent: std::cell::Cell::new(None),
         };
         state.reset_expiry(terrain, view);
         state
@@ -85,6 +89,7 @@ impl Incremental {
     }
 
     fn reset_expiry(&mut self, terrain: &ViewTerrain<'_>, view: &View) {
+        self.last_parent.set(None);
         let leaves = self.tree.leaves().to_vec();
         let expiry = leaves
             .iter()
@@ -97,6 +102,7 @@ impl Incremental {
     pub fn update(&mut self, terrain: &ViewTerrain<'_>, view: &View) -> UpdateStats {
         let motion = camera_motion(&self.last, view, &self.extent);
         self.last = *view;
+        self.last_parent.set(None);
         if !motion.is_finite() {
             // A new projection: start again.
             let before = self.tree.leaves().len();
@@ -159,9 +165,9 @@ impl Incremental {
             return;
         }
         let own = (cell.level > 0).then(|| self.evaluate(terrain, view, cell));
-        if own.is_some_and(|o| self.rule.splits(o.ratio)) {
+        if let Some(own) = own.filter(|o| self.rule.splits(o.ratio)) {
             stats.split += 1;
-            self.refine(terrain, view, cell, cells, expiry);
+            self.refine(terrain, view, (cell, own), cells, expiry);
         } else {
             cells.push(cell);
             expiry.push(self.leaf_expiry(terrain, view, cell, own));
@@ -175,7 +181,9 @@ impl Incremental {
             let parent = parent_of(top);
             let (i, j) = parent.position();
             if terrain.is_void(parent.level, i, j)
-                || terrain.splits(view, self.rule, parent.level, i, j)
+                || self
+                    .rule
+                    .splits(self.evaluate_parent(terrain, view, parent).ratio)
             {
                 break;
             }
@@ -197,18 +205,17 @@ impl Incremental {
         }
     }
 
-    /// Splits `cell` and refines its subtree from scratch, writing its leaves in
-    /// depth-first order.
+    /// Splits `cell` (evaluated as `parent_view`) and refines its subtree from scratch,
+    /// writing its leaves in depth-first order.
     fn refine(
         &mut self,
         terrain: &ViewTerrain<'_>,
         view: &View,
-        cell: Cell,
+        (cell, parent_view): (Cell, NodeView),
         cells: &mut Vec<Cell>,
         expiry: &mut Vec<f64>,
     ) {
         self.tree.set_split(cell, true);
-        let parent_view = self.evaluate(terrain, view, cell);
         let parent_slack = self.stay_split(terrain, cell, parent_view);
         for child in children(&self.tree, cell) {
             let (i, j) = child.position();
@@ -222,7 +229,7 @@ impl Incremental {
             }
             let own = self.evaluate(terrain, view, child);
             if void || self.rule.splits(own.ratio) {
-                self.refine(terrain, view, child, cells, expiry);
+                self.refine(terrain, view, (child, own), cells, expiry);
             } else {
                 cells.push(child);
                 let slack = self.stay_unsplit(own).min(parent_slack);
@@ -234,6 +241,18 @@ impl Incremental {
     fn evaluate(&self, terrain: &ViewTerrain<'_>, view: &View, cell: Cell) -> NodeView {
         let (i, j) = cell.position();
         terrain.evaluate(view, self.rule, cell.level, i, j)
+    }
+
+    /// [`Incremental::evaluate`] of `parent`, through the one-node cache `last_parent`.
+    fn evaluate_parent(&self, terrain: &ViewTerrain<'_>, view: &View, parent: Cell) -> NodeView {
+        if let Some((cell, node)) = self.last_parent.get() {
+            if cell == parent {
+                return node;
+            }
+        }
+        let node = self.evaluate(terrain, view, parent);
+        self.last_parent.set(Some((parent, node)));
+        node
     }
 
     /// When leaf `cell` must next be looked at (`own`: its evaluation, if known).
@@ -253,7 +272,7 @@ impl Incremental {
             f64::INFINITY
         } else {
             let parent = parent_of(cell);
-            self.stay_split(terrain, parent, self.evaluate(terrain, view, parent))
+            self.stay_split(terrain, parent, self.evaluate_parent(terrain, view, parent))
         };
         after(self.travelled, own_slack.min(parent_slack))
     }
