@@ -6,11 +6,11 @@
 //!   `e` is the node's height error from the [`ErrorPyramid`] (its cell drawn as two
 //!   triangles, saturated so that a parent's is at least its children's), `f` the pixels
 //!   a unit spans at depth 1, `H` the largest horizontal distance from the eye to the
-//!   node's bounding box (at least half the largest distance), `D` a lower bound on the depth of the box's points in view
-//!   ([`View::seen_depth`]) and `τ` the tolerance in pixels: `e · f · H / D²` bounds the
-//!   pixels a vertical error anywhere in the box spans on screen
-//!   ([`View::vertical_error_pixels`]), so the node splits when its error may project to
-//!   more than τ pixels.
+//!   node's bounding box (at least half the largest distance), `D` a lower bound on the
+//!   depth of the box's points in view ([`View::seen_depth`]) and `τ` the tolerance in
+//!   pixels: `e · f · H / D²` bounds the pixels a vertical error anywhere in the box
+//!   spans on screen ([`View::vertical_error_pixels`]), so the node splits when its
+//!   error may project to more than τ pixels.
 //! - **projected area** ([`Rule::Area`], Yu, Lee & Ra 1997, eq. 4): the node's threshold is
 //!   `T_i = a · (A_n / A_i) + b`, at least the decoder's `T`, with `A_i` the node's
 //!   footprint projected on the view plane and `A_n` the viewport's area (pixels²); the
@@ -20,9 +20,10 @@
 //! `φ ∈ [0, 1]` is 1 for boxes meeting the view frustum and falls to 0 for boxes more than
 //! their own half-diagonal outside it: regions out of view stay at the coarsest level, and
 //! every quantity moves continuously with the camera (what geomorphing needs). Boxes,
-//! errors and `φ` only grow from child to parent, so a split child always has a split
-//! parent and the selection is a quadtree partition; the existing triangulation with
-//! hanging vertices makes it one crack-free mesh with mixed cell sizes.
+//! errors, reaches and `φ` only grow from child to parent and depths only shrink, so a
+//! split child always has a split parent and the selection is a quadtree partition;
+//! the existing triangulation with hanging vertices makes it one crack-free mesh with
+//! mixed cell sizes.
 
 use bitvec::prelude::*;
 use glam::{DVec2, DVec3};
