@@ -42,10 +42,9 @@ pub struct View {
     tan_half: DVec2,
     /// Pixels a unit length at distance 1 covers (viewport height / (2 tan(fov/2))).
     pub pixels_per_unit: f64,
-    /// The most pixels a vertical unit length at distance 1 from the eye covers anywhere in
-    /// the view: [`View::pixels_per_unit`] over the cosine of the angle between the view
-    /// axis and the frustum's corner rays (off the axis, depth is less than distance).
-    pub pixels_per_unit_anywhere: f64,
+    /// The cosine of the angle between the view axis and the frustum's corner rays: a
+    /// point in the frustum at distance `r` from the eye lies at depth `r ·` this or more.
+    pub corner_cosine: f64,
     /// The four side planes and the near plane, inward unit normals through the eye.
     planes: [DVec3; 5],
 }
@@ -114,8 +113,7 @@ impl Camera {
             up,
             tan_half: DVec2::new(tan_h, tan_v),
             pixels_per_unit: h / (2.0 * tan_v),
-            pixels_per_unit_anywhere: h / (2.0 * tan_v)
-                * (1.0 + tan_h * tan_h + tan_v * tan_v).sqrt(),
+            corner_cosine: 1.0 / (1.0 + tan_h * tan_h + tan_v * tan_v).sqrt(),
             planes,
         }
     }
@@ -154,18 +152,31 @@ impl View {
         Some(0.5 * twice.abs())
     }
 
-    /// Pixels a height error `error` (world units) spans at depth `depth` (along the
-    /// view axis).
+    /// The most pixels a vertical segment of length `error` (world units) spans on screen
+    /// when its points lie at most `reach` from the eye horizontally and at depth `depth`
+    /// or more: `error · f · reach / depth²` (`f` = [`View::pixels_per_unit`]).
+    ///
+    /// Why: moving a point `q` (relative to the eye) up by `dt` moves its image by
+    /// `f · |F × (z × q)| / (q·F)² · dt` pixels (`F` the view axis, `z` up), and
+    /// `|F × (z × q)| ≤ |z × q|`, the point's horizontal distance. Seen from above a
+    /// height error shrinks with the horizontal distance (Lindstrom et al.'s vertical
+    /// foreshortening); off the view axis the image stretches with 1 / depth².
     #[inline]
-    pub fn error_pixels(&self, error: f64, depth: f64) -> f64 {
-        error * self.pixels_per_unit / depth.max(NEAR)
+    pub fn vertical_error_pixels(&self, error: f64, reach: f64, depth: f64) -> f64 {
+        let depth = depth.max(NEAR);
+        error * self.pixels_per_unit * reach / (depth * depth)
     }
 
-    /// The most pixels a height error `error` (world units) `distance` away from the eye
-    /// spans anywhere in the view.
+    /// A lower bound on the depth of every point of the box `lo..=hi` that lies inside
+    /// the view frustum, `distance` being the box's distance from the eye: the depth of
+    /// its nearest corner along the view axis, and at least `distance` times
+    /// [`View::corner_cosine`].
     #[inline]
-    pub fn error_pixels_anywhere(&self, error: f64, distance: f64) -> f64 {
-        error * self.pixels_per_unit_anywhere / distance.max(NEAR)
+    pub fn seen_depth(&self, lo: DVec3, hi: DVec3, distance: f64) -> f64 {
+        let nearest = DVec3::select(self.forward.cmpge(DVec3::ZERO), lo, hi);
+        self.forward
+            .dot(nearest - self.camera.eye)
+            .max(distance * self.corner_cosine)
     }
 
     /// Viewport area, pixels².
@@ -211,6 +222,19 @@ pub fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
     (lo - p).max(p - hi).max(DVec3::ZERO).length()
 }
 
+/// The largest distance from `p` to a point of the box `lo..=hi`.
+#[inline]
+pub fn farthest_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
+    (p - lo).abs().max((hi - p).abs()).length()
+}
+
+/// The largest horizontal (x, y) distance from `p` to a point of the box `lo..=hi`.
+#[inline]
+pub fn horizontal_reach(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
+    let far = (p - lo).abs().max((hi - p).abs());
+    far.truncate().length()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -253,6 +277,45 @@ mod tests {
         // 2 units at depth 10 → 10 pixels a side.
         assert!((view.projected_area(c).unwrap() - 100.0).abs() < 1e-6);
         assert!((box_distance(DVec3::new(3.0, 0.0, 0.0), -unit3(), unit3()) - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn vertical_errors_project_within_their_bound() {
+        let view = Camera::new(
+            DVec3::new(0.0, 0.0, 50.0),
+            DVec3::new(40.0, 10.0, 0.0),
+            60.0,
+            (160, 90),
+        )
+        .unwrap()
+        .view();
+        let mut seed = 12345u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut seen, mut tightest) = (0, 0.0f64);
+        for _ in 0..20000 {
+            let p = DVec3::new(next() * 120.0 - 20.0, next() * 120.0 - 60.0, next() * 30.0);
+            let error = next() * 5.0;
+            let q = p + DVec3::Z * error;
+            if view.outside_distance(p, p) > 0.0 || view.outside_distance(q, q) > 0.0 {
+                continue;
+            }
+            let (a, b) = (view.project(p).unwrap().0, view.project(q).unwrap().0);
+            let (lo, hi) = (p, q);
+            let reach = horizontal_reach(view.camera.eye, lo, hi);
+            let depth = view.seen_depth(lo, hi, box_distance(view.camera.eye, lo, hi));
+            let bound = view.vertical_error_pixels(error, reach, depth);
+            assert!(a.distance(b) <= bound * (1.0 + 1e-9) + 1e-9);
+            tightest = tightest.max(a.distance(b) / bound.max(1e-12));
+            seen += 1;
+        }
+        assert!(seen > 1000);
+        // Not loose: some errors project to most of their bound.
+        assert!(tightest > 0.8, "{tightest}");
     }
 
     fn unit3() -> DVec3 {

@@ -22,8 +22,9 @@ pub struct ScreenError {
 }
 
 /// The screen-space error of `mesh` with per-vertex heights `vertex_heights` (data units)
-/// under `view`: for every valid sample in the frustum, |mesh − true height| in world
-/// units, times the pixels a unit spans at the sample's depth.
+/// under `view`: for every valid sample in the frustum, the distance in pixels between
+/// the images of the true surface point and of the mesh point above or below it (a mesh
+/// point behind the eye is skipped).
 pub fn screen_error(
     terrain: &ViewTerrain<'_>,
     view: &View,
@@ -40,7 +41,6 @@ pub fn screen_error(
         };
         rasterise_triangle(w, t.map(corner), |s, z| surface[s] = z);
     }
-    let z_scale = terrain.placement().z_scale.abs();
     let (mut worst, mut sum, mut count) = (0.0f64, 0.0f64, 0usize);
     for (s, &z) in surface.iter().enumerate() {
         if z.is_nan() {
@@ -51,10 +51,13 @@ pub fn screen_error(
         if view.outside_distance(p, p) > 0.0 {
             continue;
         }
-        let Some((_, depth)) = view.project(p) else {
+        let (Some((seen, _)), Some((drawn, _))) = (
+            view.project(p),
+            view.project(terrain.world(s % w, s / w, z)),
+        ) else {
             continue;
         };
-        let pixels = view.error_pixels((z - truth).abs() * z_scale, depth);
+        let pixels = seen.distance(drawn);
         worst = worst.max(pixels);
         sum += pixels;
         count += 1;

@@ -3,15 +3,15 @@
 //! only leaves whose decision may have changed instead of descending from the roots.
 //!
 //! Each leaf carries an *expiry*: how far the camera may travel before the leaf could
-//! need a split or its parent a merge, in two measures of motion accumulated frame after
-//! frame (see [`camera_motion`]): the eye's displacement, which bounds how far any box
-//! distance moves, and that plus the rotation angle times the farthest terrain corner,
-//! which bounds how far any frustum-plane distance moves. Those bound how much any
-//! node's ratio can change; leaves whose expiry is still ahead are copied as they are. The others are evaluated again: a
-//! leaf whose parent no longer splits merges up to the highest such ancestor, a leaf that
-//! now splits is refined from there down. The result equals [`ViewTerrain::select`] for
-//! the same camera (the property tests check it frame after frame). The area rule has no
-//! such bound: every leaf is evaluated again each frame.
+//! need a split or its parent a merge, in one measure of motion accumulated frame after
+//! frame (see [`camera_motion`]): the eye's displacement plus the rotation angle times the
+//! farthest terrain corner, which bounds how far any box distance, horizontal reach,
+//! depth or frustum-plane distance moves. Those bound how much any node's ratio can
+//! change; leaves whose expiry is still ahead are copied as they are. The others are
+//! evaluated again: a leaf whose parent no longer splits merges up to the highest such
+//! ancestor, a leaf that now splits is refined from there down. The result equals
+//! [`ViewTerrain::select`] for the same camera (the property tests check it frame after
+//! frame). The area rule has no such bound: every leaf is evaluated again each frame.
 
 use super::camera::View;
 use super::selection::{NodeView, Rule, ViewTerrain};
@@ -22,16 +22,19 @@ use crate::mesh::cells::{Cell, CellTree};
 pub struct Incremental {
     rule: Rule,
     tree: CellTree,
-    /// Expiry of every leaf of `tree`, in the same order.
-    expiry: Vec<Expiry>,
+    /// Expiry of every leaf of `tree` (accumulated motion), in the same order.
+    expiry: Vec<f64>,
     /// The ping-pong buffers the next frame is written to.
     spare_cells: Vec<Cell>,
-    spare_expiry: Vec<Expiry>,
-    /// Camera motion accumulated since the first frame.
-    travelled: Expiry,
+    spare_expiry: Vec<f64>,
+    /// Camera motion accumulated since the first frame (see [`camera_motion`]).
+    travelled: f64,
     last: View,
     /// Corners of the terrain's bounding box.
     extent: [glam::DVec3; 8],
+    /// The last parent evaluated under the current view: a parent's leaves come one after
+    /// another, so it is evaluated once for all of them. Cleared when the view changes.
+    last_parent: std::cell::Cell<Option<(Cell, NodeView)>>,
 }
 
 /// What one update changed.
@@ -48,45 +51,10 @@ pub struct UpdateStats {
 /// Slack safety factor: decisions are re-evaluated slightly before the bound says.
 const SAFETY: f64 = 0.999;
 
-/// Camera motion in the two measures: eye displacement (bounds box distances) and eye
-/// displacement plus rotation times reach (bounds frustum-plane distances). Used both
-/// for accumulated motion and for the point a leaf expires at.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Expiry {
-    /// Box-distance measure.
-    pub distance: f64,
-    /// Frustum-plane measure.
-    pub frustum: f64,
-}
-
-impl Expiry {
-    const NEVER: Expiry = Expiry {
-        distance: f64::INFINITY,
-        frustum: f64::INFINITY,
-    };
-    const NOW: Expiry = Expiry {
-        distance: 0.0,
-        frustum: 0.0,
-    };
-
-    fn min(self, other: Expiry) -> Expiry {
-        Expiry {
-            distance: self.distance.min(other.distance),
-            frustum: self.frustum.min(other.frustum),
-        }
-    }
-
-    fn after(self, slack: Expiry) -> Expiry {
-        Expiry {
-            distance: self.distance + slack.distance.max(0.0) * SAFETY,
-            frustum: self.frustum + slack.frustum.max(0.0) * SAFETY,
-        }
-    }
-
-    /// Whether motion `travelled` is still short of this expiry.
-    fn ahead_of(self, travelled: Expiry) -> bool {
-        self.distance > travelled.distance && self.frustum > travelled.frustum
-    }
+/// The accumulated motion `slack` after `travelled` (slightly early, by [`SAFETY`]).
+#[inline]
+fn after(travelled: f64, slack: f64) -> f64 {
+    travelled + slack.max(0.0) * SAFETY
 }
 
 impl Incremental {
@@ -106,9 +74,10 @@ impl Incremental {
             expiry: Vec::new(),
             spare_cells: Vec::new(),
             spare_expiry: Vec::new(),
-            travelled: Expiry::NOW,
+            travelled: 0.0,
             last: *view,
             extent,
+            last_parent: std::cell::Cell::new(None),
         };
         state.reset_expiry(terrain, view);
         state
@@ -120,6 +89,7 @@ impl Incremental {
     }
 
     fn reset_expiry(&mut self, terrain: &ViewTerrain<'_>, view: &View) {
+        self.last_parent.set(None);
         let leaves = self.tree.leaves().to_vec();
         let expiry = leaves
             .iter()
@@ -132,7 +102,8 @@ impl Incremental {
     pub fn update(&mut self, terrain: &ViewTerrain<'_>, view: &View) -> UpdateStats {
         let motion = camera_motion(&self.last, view, &self.extent);
         self.last = *view;
-        if !motion.frustum.is_finite() {
+        self.last_parent.set(None);
+        if !motion.is_finite() {
             // A new projection: start again.
             let before = self.tree.leaves().len();
             self.tree = terrain.select(view, self.rule);
@@ -142,8 +113,7 @@ impl Incremental {
                 ..UpdateStats::default()
             };
         }
-        self.travelled.distance += motion.distance;
-        self.travelled.frustum += motion.frustum;
+        self.travelled += motion;
         let mut old = std::mem::take(&mut self.spare_cells);
         self.tree.swap_leaves(&mut old);
         let mut cells = Vec::new();
@@ -157,7 +127,7 @@ impl Incremental {
             if cells.last().is_some_and(|&last| contains(last, cell)) {
                 continue; // merged into the last cell written
             }
-            if until.ahead_of(self.travelled) {
+            if until > self.travelled {
                 cells.push(cell);
                 expiry.push(until);
                 continue;
@@ -179,7 +149,7 @@ impl Incremental {
         view: &View,
         cell: Cell,
         cells: &mut Vec<Cell>,
-        expiry: &mut Vec<Expiry>,
+        expiry: &mut Vec<f64>,
         stats: &mut UpdateStats,
     ) {
         let top = self.merge_target(terrain, view, cell);
@@ -195,9 +165,9 @@ impl Incremental {
             return;
         }
         let own = (cell.level > 0).then(|| self.evaluate(terrain, view, cell));
-        if own.is_some_and(|o| self.rule.splits(o.ratio)) {
+        if let Some(own) = own.filter(|o| self.rule.splits(o.ratio)) {
             stats.split += 1;
-            self.refine(terrain, view, cell, cells, expiry);
+            self.refine(terrain, view, (cell, own), cells, expiry);
         } else {
             cells.push(cell);
             expiry.push(self.leaf_expiry(terrain, view, cell, own));
@@ -211,7 +181,9 @@ impl Incremental {
             let parent = parent_of(top);
             let (i, j) = parent.position();
             if terrain.is_void(parent.level, i, j)
-                || terrain.splits(view, self.rule, parent.level, i, j)
+                || self
+                    .rule
+                    .splits(self.evaluate_parent(terrain, view, parent).ratio)
             {
                 break;
             }
@@ -233,18 +205,17 @@ impl Incremental {
         }
     }
 
-    /// Splits `cell` and refines its subtree from scratch, writing its leaves in
-    /// depth-first order.
+    /// Splits `cell` (evaluated as `parent_view`) and refines its subtree from scratch,
+    /// writing its leaves in depth-first order.
     fn refine(
         &mut self,
         terrain: &ViewTerrain<'_>,
         view: &View,
-        cell: Cell,
+        (cell, parent_view): (Cell, NodeView),
         cells: &mut Vec<Cell>,
-        expiry: &mut Vec<Expiry>,
+        expiry: &mut Vec<f64>,
     ) {
         self.tree.set_split(cell, true);
-        let parent_view = self.evaluate(terrain, view, cell);
         let parent_slack = self.stay_split(terrain, cell, parent_view);
         for child in children(&self.tree, cell) {
             let (i, j) = child.position();
@@ -252,17 +223,17 @@ impl Incremental {
             if child.level == 0 {
                 if self.tree.is_meshed(child) {
                     cells.push(child);
-                    expiry.push(self.travelled.after(parent_slack));
+                    expiry.push(after(self.travelled, parent_slack));
                 }
                 continue;
             }
             let own = self.evaluate(terrain, view, child);
             if void || self.rule.splits(own.ratio) {
-                self.refine(terrain, view, child, cells, expiry);
+                self.refine(terrain, view, (child, own), cells, expiry);
             } else {
                 cells.push(child);
                 let slack = self.stay_unsplit(own).min(parent_slack);
-                expiry.push(self.travelled.after(slack));
+                expiry.push(after(self.travelled, slack));
             }
         }
     }
@@ -272,6 +243,18 @@ impl Incremental {
         terrain.evaluate(view, self.rule, cell.level, i, j)
     }
 
+    /// [`Incremental::evaluate`] of `parent`, through the one-node cache `last_parent`.
+    fn evaluate_parent(&self, terrain: &ViewTerrain<'_>, view: &View, parent: Cell) -> NodeView {
+        if let Some((cell, node)) = self.last_parent.get() {
+            if cell == parent {
+                return node;
+            }
+        }
+        let node = self.evaluate(terrain, view, parent);
+        self.last_parent.set(Some((parent, node)));
+        node
+    }
+
     /// When leaf `cell` must next be looked at (`own`: its evaluation, if known).
     fn leaf_expiry(
         &self,
@@ -279,101 +262,109 @@ impl Incremental {
         view: &View,
         cell: Cell,
         own: Option<NodeView>,
-    ) -> Expiry {
+    ) -> f64 {
         let own_slack = if cell.level == 0 {
-            Expiry::NEVER
+            f64::INFINITY
         } else {
             self.stay_unsplit(own.unwrap_or_else(|| self.evaluate(terrain, view, cell)))
         };
         let parent_slack = if cell.level >= terrain.levels() {
-            Expiry::NEVER
+            f64::INFINITY
         } else {
             let parent = parent_of(cell);
-            self.stay_split(terrain, parent, self.evaluate(terrain, view, parent))
+            self.stay_split(terrain, parent, self.evaluate_parent(terrain, view, parent))
         };
-        self.travelled.after(own_slack.min(parent_slack))
+        after(self.travelled, own_slack.min(parent_slack))
     }
 
-    /// How far the camera may move before a node that does not split (`r ≤ 1`) could.
-    /// With `r = φ·A/d`: `r' ≤ A / (d − Δ)` stays ≤ 1 while the distance moves less than
-    /// `d − A`; when that is not positive (φ < 1 holds the node back),
-    /// `r' ≤ (φ + Δ/m) · A / (d − Δ)` stays ≤ 1 for a frustum motion up to
-    /// `(d − φA) / (A/m + 1)`.
-    fn stay_unsplit(&self, node: NodeView) -> Expiry {
+    /// How far the camera may move (in [`camera_motion`]'s measure Δ) before a node that
+    /// does not split (`r = φ·W·H/D² ≤ 1`) could. Reach and depth move by at most Δ and
+    /// φ by at most Δ/m (m the margin), so `r' ≤ (φ + Δ/m)·W·(H + Δ)/(D − Δ)²` (φ stays
+    /// 1 once it is), which stays ≤ 1 up to the first root of the quadratic. A box
+    /// farther outside the frustum than its margin keeps φ = 0 (so `r = 0`) until the
+    /// frustum has moved the difference.
+    fn stay_unsplit(&self, node: NodeView) -> f64 {
         if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return Expiry::NOW;
+            return 0.0;
         }
-        let a = node.weight;
-        if a == 0.0 {
-            return Expiry::NEVER;
+        let w = node.weight;
+        if w == 0.0 {
+            return f64::INFINITY;
         }
-        if node.distance > a {
-            return Expiry {
-                distance: node.distance - a,
-                frustum: f64::INFINITY,
-            };
-        }
-        Expiry {
-            distance: f64::INFINITY,
-            frustum: (node.distance - node.frustum * a) / (a / node.margin + 1.0),
-        }
+        let hidden = -node.clearance - node.margin;
+        let growth = if node.frustum >= 1.0 {
+            0.0
+        } else {
+            1.0 / node.margin
+        };
+        let (h, d) = (node.reach, node.depth);
+        // (φ + gΔ)·W·(H + Δ) − (D − Δ)² = aΔ² + bΔ + c, c ≤ 0.
+        let a = growth * w - 1.0;
+        let b = w * (node.frustum + growth * h) + 2.0 * d;
+        let c = node.frustum * w * h - d * d;
+        let discriminant = b * b - 4.0 * a * c;
+        let visible = if discriminant < 0.0 {
+            d
+        } else {
+            (-2.0 * c / (b + discriminant.sqrt())).min(d)
+        };
+        visible.max(hidden)
     }
 
     /// How far the camera may move before a split node (`r > 1`) could stop splitting:
-    /// while the frustum moves less than the box's clearance φ stays 1 and
-    /// `r' ≥ A / (d + Δ)` stays above 1 for a distance motion up to `A − d`; otherwise
-    /// `r' ≥ (φ − Δ/m) · A / (d + Δ)` stays above 1 for a frustum motion up to
-    /// `(φA − d) / (A/m + 1)`.
-    fn stay_split(&self, terrain: &ViewTerrain<'_>, cell: Cell, node: NodeView) -> Expiry {
+    /// `r' ≥ (φ − Δ/m)·W·(H − Δ)/(D + Δ)²`, or with φ' = 1 while the frustum moves less
+    /// than the box's clearance, stays above 1 up to the first root of the quadratic.
+    fn stay_split(&self, terrain: &ViewTerrain<'_>, cell: Cell, node: NodeView) -> f64 {
         let (i, j) = cell.position();
         if terrain.is_void(cell.level, i, j) {
-            return Expiry::NEVER;
+            return f64::INFINITY;
         }
         if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return Expiry::NOW;
+            return 0.0;
         }
-        let a = node.weight;
-        let general = (node.frustum * a - node.distance) / (a / node.margin + 1.0);
-        if node.clearance > 0.0 && a - node.distance > general {
-            return Expiry {
-                distance: a - node.distance,
-                frustum: node.clearance,
-            };
-        }
-        Expiry {
-            distance: f64::INFINITY,
-            frustum: general,
+        let general = split_holds(node, node.frustum, 1.0 / node.margin);
+        if node.clearance > 0.0 {
+            general.max(split_holds(node, 1.0, 0.0).min(node.clearance))
+        } else {
+            general
         }
     }
 }
 
-/// Upper bounds on how far box distances and frustum-plane distances (for points of the
-/// terrain box `extent`) move from `from` to `to`: the eye's displacement, and that plus
-/// the frame's rotation angle times the farthest terrain corner. Infinite when the
-/// projection changed.
-pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8]) -> Expiry {
+/// The first Δ > 0 at which `(φ − gΔ)·W·(H − Δ) − (D + Δ)²` (positive at 0) reaches 0.
+fn split_holds(node: NodeView, frustum: f64, shrink: f64) -> f64 {
+    let (w, h, d) = (node.weight, node.reach, node.depth);
+    let a = shrink * w - 1.0;
+    let b = -w * (frustum + shrink * h) - 2.0 * d;
+    let c = frustum * w * h - d * d;
+    if c <= 0.0 {
+        return 0.0;
+    }
+    let discriminant = (b * b - 4.0 * a * c).max(0.0);
+    2.0 * c / (-b + discriminant.sqrt())
+}
+
+/// An upper bound on how far box distances, horizontal reaches, depths and
+/// frustum-plane distances (for points of the terrain box `extent`) move from `from` to
+/// `to`: the eye's displacement plus the frame's rotation angle times the farthest
+/// terrain corner. Infinite when the projection changed.
+pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8]) -> f64 {
     if from.camera.fov_degrees != to.camera.fov_degrees
         || from.camera.viewport != to.camera.viewport
     {
-        return Expiry::NEVER;
+        return f64::INFINITY;
     }
     let shift = from.camera.eye.distance(to.camera.eye);
     let angle = from.rotation_to(to);
     if angle == 0.0 {
-        return Expiry {
-            distance: shift,
-            frustum: shift,
-        };
+        return shift;
     }
     let reach = extent
         .iter()
         .map(|p| p.distance(to.camera.eye))
         .fold(0.0, f64::max);
     // |n' − n| = 2 sin(θ/2) ≤ θ; a small margin covers rounding in the angle.
-    Expiry {
-        distance: shift,
-        frustum: shift + (angle * 1.001 + 1e-12) * reach,
-    }
+    shift + (angle * 1.001 + 1e-12) * reach
 }
 
 fn parent_of(cell: Cell) -> Cell {

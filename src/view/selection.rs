@@ -2,12 +2,15 @@
 //! to what the view tolerates, and a split wherever `r` passes 1.
 //!
 //! Two rules, both read from what one decode gives (no second decode):
-//! - **screen-space error** ([`Rule::ScreenSpace`]): `r = φ · e · K / (d · τ)`, where `e` is
-//!   the node's height error from the [`ErrorPyramid`] (its cell drawn as two triangles,
-//!   saturated so that a parent's is at least its children's), `d` the distance from the
-//!   eye to the node's bounding box, `K` the most pixels a unit spans at distance 1
-//!   anywhere in the view and `τ` the tolerance in pixels: the node splits when its error
-//!   may project to more than τ pixels.
+//! - **screen-space error** ([`Rule::ScreenSpace`]): `r = φ · e · f · H / (D² · τ)`, where
+//!   `e` is the node's height error from the [`ErrorPyramid`] (its cell drawn as two
+//!   triangles, saturated so that a parent's is at least its children's), `f` the pixels
+//!   a unit spans at depth 1, `H` the largest horizontal distance from the eye to the
+//!   node's bounding box (at least half the largest distance), `D` a lower bound on the
+//!   depth of the box's points in view ([`View::seen_depth`]) and `τ` the tolerance in
+//!   pixels: `e · f · H / D²` bounds the pixels a vertical error anywhere in the box
+//!   spans on screen ([`View::vertical_error_pixels`]), so the node splits when its
+//!   error may project to more than τ pixels.
 //! - **projected area** ([`Rule::Area`], Yu, Lee & Ra 1997, eq. 4): the node's threshold is
 //!   `T_i = a · (A_n / A_i) + b`, at least the decoder's `T`, with `A_i` the node's
 //!   footprint projected on the view plane and `A_n` the viewport's area (pixels²); the
@@ -17,22 +20,29 @@
 //! `φ ∈ [0, 1]` is 1 for boxes meeting the view frustum and falls to 0 for boxes more than
 //! their own half-diagonal outside it: regions out of view stay at the coarsest level, and
 //! every quantity moves continuously with the camera (what geomorphing needs). Boxes,
-//! errors and `φ` only grow from child to parent, so a split child always has a split
-//! parent and the selection is a quadtree partition; the existing triangulation with
-//! hanging vertices makes it one crack-free mesh with mixed cell sizes.
+//! errors, reaches and `φ` only grow from child to parent and depths only shrink, so a
+//! split child always has a split parent and the selection is a quadtree partition;
+//! the existing triangulation with hanging vertices makes it one crack-free mesh with
+//! mixed cell sizes.
 
 use bitvec::prelude::*;
 use glam::{DVec2, DVec3};
 use wavemesh_codec::significance::nodes_along;
 use wavemesh_codec::SignificanceMap;
 
-use super::camera::{box_distance, View};
+use super::camera::{box_distance, farthest_distance, horizontal_reach, View};
 use super::ViewError;
 use crate::mesh::cells::{Cell, CellTree};
 use crate::mesh::export::Placement;
 use crate::mesh::pyramid::{node_bounds, Diagonal, ErrorPyramid, Heights, Shape, VoidPyramid};
 use crate::mesh::triangulate::triangulate;
 use crate::mesh::GridMesh;
+
+/// The least share of a height error counted however steeply it is seen (the sine of
+/// 30°): the vertical foreshortening alone would let the error vanish under the eye,
+/// where a wrong height still shows in shading and silhouettes, and would make ratios
+/// there change faster with horizontal motion than geomorphing can blend.
+const MIN_FORESHORTENING: f64 = 0.5;
 
 /// How the view sets each node's threshold.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -89,7 +99,7 @@ pub fn blend_of_ratio(ratio: f64) -> f64 {
 }
 
 /// Per-node bounding heights and saturated error (world units).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct NodeSummary {
     low: f32,
     high: f32,
@@ -101,15 +111,19 @@ struct NodeSummary {
 pub struct NodeView {
     /// What the node misses over what the view tolerates (splits past 1).
     pub ratio: f64,
-    /// Distance from the eye to the node's box.
-    pub distance: f64,
     /// The frustum factor φ.
     pub frustum: f64,
     /// The distance outside the frustum over which φ falls from 1 to 0 (the box's
     /// half-diagonal).
     pub margin: f64,
-    /// `e · K / τ` (screen-space rule; 0 for the area rule): `ratio = φ · weight / distance`.
+    /// `e · f / τ` (screen-space rule; 0 for the area rule):
+    /// `ratio = φ · weight · reach / depth²`.
     pub weight: f64,
+    /// Largest horizontal distance from the eye to the box, at least
+    /// [`MIN_FORESHORTENING`] times the largest distance.
+    pub reach: f64,
+    /// Lower bound on the depth of the box's points in view ([`View::seen_depth`]).
+    pub depth: f64,
     /// The box's [`View::frustum_clearance`].
     pub clearance: f64,
 }
@@ -123,13 +137,12 @@ pub struct ViewTerrain<'a> {
     voids: Option<VoidPyramid>,
     placement: Placement,
     decoder_threshold: f64,
-    /// Index `m − 1` for level `m`.
+    /// Index `m − 1` for level `m`, each level in Z order ([`z_order`]): the four
+    /// children of a node are adjacent, and a depth-first walk reads memory in order.
     nodes: Vec<Vec<NodeSummary>>,
-    /// Nodes per row, index `m` for level `m`.
-    widths: Vec<usize>,
     /// World x/y of sample (0, 0) and the steps of one column and one row.
     affine: [DVec2; 3],
-    /// Per node, whether it is cut along its rising diagonal (index `m − 1`).
+    /// Per node, whether it is cut along its rising diagonal (index `m − 1`, Z order).
     rising: Vec<BitVec<u64, Lsb0>>,
 }
 
@@ -166,9 +179,6 @@ impl<'a> ViewTerrain<'a> {
             placement,
             decoder_threshold: 2f64.powi(decoded_plane.min(1000) as i32),
             nodes,
-            widths: (0..=levels)
-                .map(|m| nodes_along(heights.width, m))
-                .collect(),
             affine: [origin, xy(1, 0) - origin, xy(0, 1) - origin],
             rising,
         })
@@ -224,7 +234,7 @@ impl<'a> ViewTerrain<'a> {
         let (low, high) = if level == 0 {
             (0.0, 0.0)
         } else {
-            let s = self.nodes[level as usize - 1][j * self.widths[level as usize] + i];
+            let s = self.nodes[level as usize - 1][z_order(i, j)];
             (f64::from(s.low), f64::from(s.high))
         };
         let [origin, col, row] = self.affine;
@@ -239,37 +249,37 @@ impl<'a> ViewTerrain<'a> {
     #[inline]
     pub fn evaluate(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> NodeView {
         let (lo, hi) = self.node_box(level, i, j);
-        let distance = box_distance(view.camera.eye, lo, hi);
+        let eye = view.camera.eye;
         let margin = 0.5 * lo.distance(hi);
         let clearance = view.frustum_clearance(lo, hi);
         let frustum = (1.0 + clearance.min(0.0) / margin.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        let mut node = NodeView {
+            ratio: 0.0,
+            frustum,
+            margin,
+            weight: 0.0,
+            reach: horizontal_reach(eye, lo, hi)
+                .max(MIN_FORESHORTENING * farthest_distance(eye, lo, hi)),
+            depth: view.seen_depth(lo, hi, box_distance(eye, lo, hi)),
+            clearance,
+        };
         match rule {
             Rule::ScreenSpace { tau } => {
-                let error =
-                    self.nodes[level as usize - 1][j * self.widths[level as usize] + i].error;
-                let weight = view.error_pixels_anywhere(f64::from(error), 1.0) / tau;
-                NodeView {
-                    ratio: frustum * weight / distance.max(1e-9),
-                    distance,
-                    frustum,
-                    margin,
-                    weight,
-                    clearance,
+                let error = self.nodes[level as usize - 1][z_order(i, j)].error;
+                let error = f64::from(error);
+                node.weight = error * view.pixels_per_unit / tau;
+                if frustum > 0.0 && node.weight > 0.0 {
+                    node.ratio =
+                        frustum * view.vertical_error_pixels(error, node.reach, node.depth) / tau;
                 }
             }
-            Rule::Area { a, b } => NodeView {
-                ratio: if frustum > 0.0 {
-                    frustum * self.area_ratio(view, a, b, level, i, j)
-                } else {
-                    0.0
-                },
-                distance,
-                frustum,
-                margin,
-                weight: 0.0,
-                clearance,
-            },
+            Rule::Area { a, b } => {
+                if frustum > 0.0 {
+                    node.ratio = frustum * self.area_ratio(view, a, b, level, i, j);
+                }
+            }
         }
+        node
     }
 
     /// `2^(plane − 1) / T_i` for node `(level, i, j)`, 0 when nothing in its subtree is
@@ -307,7 +317,7 @@ impl<'a> ViewTerrain<'a> {
     /// The diagonal node `(level, i, j)` (`level ≥ 1`) is cut along.
     #[inline]
     pub fn diagonal(&self, level: u32, i: usize, j: usize) -> Diagonal {
-        if self.rising[level as usize - 1][j * self.widths[level as usize] + i] {
+        if self.rising[level as usize - 1][z_order(i, j)] {
             Diagonal::Rising
         } else {
             Diagonal::Falling
@@ -334,7 +344,7 @@ impl<'a> ViewTerrain<'a> {
 
 /// Per node of levels `1..=levels`: the lowest and highest valid height (times
 /// `z_scale`) and the two-triangle error along the node's diagonal, saturated up the tree
-/// (void nodes take their children's).
+/// (void nodes take their children's); each level in Z order (`rising` too).
 fn summarise(
     heights: Heights<'_>,
     valid: &BitSlice<u64, Lsb0>,
@@ -351,7 +361,7 @@ fn summarise(
         for j in 0..nh {
             for i in 0..nw {
                 let bounds = node_bounds(w, h, m, i, j);
-                let diagonal = if rising[m as usize - 1][j * nw + i] {
+                let diagonal = if rising[m as usize - 1][z_order(i, j)] {
                     Diagonal::Rising
                 } else {
                     Diagonal::Falling
@@ -401,6 +411,37 @@ fn summarise(
         (s.low, s.high) = (a.min(b), a.max(b));
         s.error *= scale.abs();
     }
+    out.iter()
+        .zip(1..)
+        .map(|(level, m)| in_z_order(level, nodes_along(w, m), nodes_along(h, m)))
+        .collect()
+}
+
+/// The position of node `(i, j)` in its level's Z-order (Morton) array: the bits of `i`
+/// and `j` interleaved.
+#[inline]
+pub(super) fn z_order(i: usize, j: usize) -> usize {
+    spread_bits(i) | spread_bits(j) << 1
+}
+
+/// The low 32 bits of `v` moved to the even bit positions.
+#[inline]
+fn spread_bits(v: usize) -> usize {
+    let mut v = v as u64 & 0xffff_ffff;
+    v = (v | v << 16) & 0x0000_ffff_0000_ffff;
+    v = (v | v << 8) & 0x00ff_00ff_00ff_00ff;
+    v = (v | v << 4) & 0x0f0f_0f0f_0f0f_0f0f;
+    v = (v | v << 2) & 0x3333_3333_3333_3333;
+    v = (v | v << 1) & 0x5555_5555_5555_5555;
+    v as usize
+}
+
+/// The row-major `nw × nh` array `rows` in Z order (slots off the grid hold the default).
+fn in_z_order<T: Copy + Default>(rows: &[T], nw: usize, nh: usize) -> Vec<T> {
+    let mut out = vec![T::default(); z_order(nw.max(1) - 1, nh.max(1) - 1) + 1];
+    for (k, &value) in rows.iter().enumerate() {
+        out[z_order(k % nw, k / nw)] = value;
+    }
     out
 }
 
@@ -408,7 +449,7 @@ fn summarise(
 /// diagonal. The children its parent's diagonal crosses take the parent's, so that a
 /// node's children, fresh from a split and still at their coarse heights, lie exactly on
 /// the surface the node drew (no pop from a flipped diagonal); the others, and the roots,
-/// take the diagonal through their centre sample's ridge or valley.
+/// take the diagonal through their centre sample's ridge or valley. Each level in Z order.
 fn choose_diagonals(heights: Heights<'_>, levels: u32) -> Vec<BitVec<u64, Lsb0>> {
     let (w, h) = (heights.width, heights.height);
     let mut out: Vec<BitVec<u64, Lsb0>> = vec![BitVec::new(); levels as usize];
@@ -437,5 +478,15 @@ fn choose_diagonals(heights: Heights<'_>, levels: u32) -> Vec<BitVec<u64, Lsb0>>
         }
         out[m as usize - 1] = level;
     }
-    out
+    out.iter()
+        .zip(1..)
+        .map(|(level, m)| {
+            let (nw, nh) = (nodes_along(w, m), nodes_along(h, m));
+            let mut z = bitvec![u64, Lsb0; 0; z_order(nw - 1, nh - 1) + 1];
+            for k in level.iter_ones() {
+                z.set(z_order(k % nw, k / nw), true);
+            }
+            z
+        })
+        .collect()
 }
