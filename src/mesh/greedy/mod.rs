@@ -199,11 +199,9 @@ impl<'a> GreedyMesher<'a> {
         let p = self.tin.add_point(x, y, self.grid.vertex_height((x, y)));
         let mut to_legalise = std::mem::take(&mut self.to_legalise);
         match side {
-            Some(e) => {
-                let (made, opposite) = self.tin.split_edge(e, p);
-                self.touched.extend_from_slice(&made);
-                to_legalise.extend_from_slice(&opposite);
-            }
+            Some(e) => self
+                .tin
+                .split_edge(e, p, &mut self.touched, &mut to_legalise),
             None => {
                 let (made, opposite) = self.tin.split_triangle(t, p);
                 self.touched.extend_from_slice(&made);

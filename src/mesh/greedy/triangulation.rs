@@ -191,9 +191,9 @@ impl Triangulation {
     }
 
     /// Splits the edge of half-edge `e` at vertex `p` on it: two triangles become four
-    /// (one becomes two on the border). Returns the triangles made and the half-edges
-    /// opposite `p` (to legalise).
-    pub fn split_edge(&mut self, e: u32, p: u32) -> (Vec<u32>, Vec<u32>) {
+    /// (one becomes two on the border). Appends the triangles made to `made` and the
+    /// half-edges opposite `p` (to legalise) to `opposite` (no allocation a split).
+    pub fn split_edge(&mut self, e: u32, p: u32, made: &mut Vec<u32>, opposite: &mut Vec<u32>) {
         let f = self.twins[e as usize];
         let (a, b, c) = (
             self.corners[e as usize],
@@ -207,7 +207,9 @@ impl Triangulation {
             // t1: a→p, p→c, c→a; n1: p→b, b→c, c→p.
             self.set_triangle(t1, [a, p, c], [NONE, 3 * n1 + 2, x2]);
             self.set_triangle(n1, [p, b, c], [NONE, x1, 3 * t1 + 1]);
-            return (vec![t1, n1], vec![3 * t1 + 2, 3 * n1 + 1]);
+            made.extend_from_slice(&[t1, n1]);
+            opposite.extend_from_slice(&[3 * t1 + 2, 3 * n1 + 1]);
+            return;
         }
         let d = self.corners[prev(f) as usize];
         let (y1, y2) = (self.twins[next(f) as usize], self.twins[prev(f) as usize]);
@@ -217,10 +219,8 @@ impl Triangulation {
         self.set_triangle(n1, [p, b, c], [3 * t2, x1, 3 * t1 + 1]);
         self.set_triangle(t2, [b, p, d], [3 * n1, 3 * n2 + 2, y2]);
         self.set_triangle(n2, [p, a, d], [3 * t1, y1, 3 * t2 + 1]);
-        (
-            vec![t1, n1, t2, n2],
-            vec![3 * t1 + 2, 3 * n1 + 1, 3 * t2 + 2, 3 * n2 + 1],
-        )
+        made.extend_from_slice(&[t1, n1, t2, n2]);
+        opposite.extend_from_slice(&[3 * t1 + 2, 3 * n1 + 1, 3 * t2 + 2, 3 * n2 + 1]);
     }
 
     /// The quadrilateral around the edge of `e` (`e` from `a` to `b` in triangle
@@ -338,7 +338,7 @@ pub(crate) mod tests {
             .find(|&e| t.twins[e as usize] != NONE)
             .expect("an interior edge");
         let p = t.add_point(4, 4, 0.0);
-        t.split_edge(diagonal, p);
+        t.split_edge(diagonal, p, &mut Vec::new(), &mut Vec::new());
         assert_eq!(t.triangle_count(), 4);
         assert_consistent(&t, 9, 9);
         let border = (0..t.corners.len() as u32)
@@ -350,7 +350,9 @@ pub(crate) mod tests {
             })
             .unwrap();
         let q = t.add_point(2, 8, 0.0);
-        t.split_edge(border, q);
+        let (mut made, mut opposite) = (Vec::new(), Vec::new());
+        t.split_edge(border, q, &mut made, &mut opposite);
+        assert_eq!((made.len(), opposite.len()), (2, 2));
         assert_eq!(t.triangle_count(), 5);
         assert_consistent(&t, 9, 9);
     }
