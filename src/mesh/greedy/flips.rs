@@ -6,7 +6,7 @@
 //! last weighed is not weighed again.
 
 use super::scan::{assess_within, error_at, errors, errors_within};
-use super::triangulation::{orient, NONE};
+use super::triangulation::{orient, Vertex, NONE};
 use super::{GreedyMesher, GridMesh};
 
 /// Clock value of "never": edges not weighed yet, triangles not flipped yet.
@@ -32,13 +32,14 @@ impl GreedyMesher<'_> {
             return false;
         }
         for e in 3 * t..3 * t + 3 {
-            let Some([a, b, c, d]) = self.tin.quad_points(e) else {
+            let Some(q) = self.tin.quad_vertices(e) else {
                 continue;
             };
+            let [a, b, c, d] = q.map(Vertex::point);
             if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
                 continue;
             }
-            let (first, second) = ([c, a, d], [d, b, c]);
+            let (first, second) = ([q[2], q[0], q[3]], [q[3], q[1], q[2]]);
             let f = self.tin.twins[e as usize];
             // The worst samples of the two triangles are the likeliest to stay over.
             let stays_over = |s: u32| {
@@ -116,10 +117,18 @@ impl GreedyMesher<'_> {
             return false;
         }
         state.weighed[e as usize] = state.clock;
-        if self.assessments[t1].touches_void || self.assessments[t2].touches_void {
+        let (first, second) = (&self.assessments[t1], &self.assessments[t2]);
+        if first.touches_void || second.touches_void {
             return false;
         }
-        let [a, b, c, d] = self.tin.quad_points(e).expect("interior");
+        let unflipped = state.changed[t1] == NEVER && state.changed[t2] == NEVER;
+        if unflipped && first.candidate == u32::MAX && second.candidate == u32::MAX {
+            // Neither triangle holds a sample but its corners (as assessed during
+            // insertion): nor does the quadrilateral, and either diagonal is exact.
+            return false;
+        }
+        let q = self.tin.quad_vertices(e).expect("interior");
+        let [a, b, c, d] = q.map(Vertex::point);
         if orient(c, a, d) <= 0 || orient(d, b, c) <= 0 {
             return false;
         }
@@ -128,7 +137,8 @@ impl GreedyMesher<'_> {
             // interpolates them the same.
             return false;
         }
-        for (t, p) in [(t1, [a, b, c]), (t2, [b, a, d])] {
+        let [va, vb, vc, vd] = q;
+        for (t, p) in [(t1, [va, vb, vc]), (t2, [vb, va, vd])] {
             if state.errors[t].0.is_nan() {
                 state.errors[t] = errors(&self.grid, p);
             }
@@ -136,10 +146,11 @@ impl GreedyMesher<'_> {
         let (now1, now2) = (state.errors[t1], state.errors[t2]);
         let allowed = limit.unwrap_or(now1.0.max(now2.0));
         let sum_limit = (now1.1 + now2.1) * (1.0 - 1e-12);
-        let Some(new1) = errors_within(&self.grid, [c, a, d], allowed, sum_limit) else {
+        let Some(new1) = errors_within(&self.grid, [vc, va, vd], allowed, sum_limit) else {
             return false;
         };
-        let Some(new2) = errors_within(&self.grid, [d, b, c], allowed, sum_limit - new1.1) else {
+        let Some(new2) = errors_within(&self.grid, [vd, vb, vc], allowed, sum_limit - new1.1)
+        else {
             return false;
         };
         self.tin.flip(e);

@@ -89,7 +89,7 @@ impl<'a> GreedyMesher<'a> {
         }
         let mut mesher = GreedyMesher {
             grid,
-            tin: Triangulation::rectangle(grid.width, grid.height),
+            tin: Triangulation::rectangle(grid.width, grid.height, |p| grid.vertex_height(p)),
             assessments: Vec::new(),
             queue: WorstFirst::default(),
             touched: vec![0, 1],
@@ -151,7 +151,8 @@ impl<'a> GreedyMesher<'a> {
             let corners = self.tin.triangle(t).map(|v| {
                 if index[v as usize] == u32::MAX {
                     index[v as usize] = vertices.len() as u32;
-                    vertices.push(self.grid.sample(self.tin.points[v as usize]) as u32);
+                    let point = self.tin.points[v as usize].point();
+                    vertices.push(self.grid.sample(point) as u32);
                 }
                 index[v as usize]
             });
@@ -166,12 +167,14 @@ impl<'a> GreedyMesher<'a> {
     }
 
     /// (column, row) of triangle `t`'s candidate.
+    #[inline]
     fn candidate_point(&self, t: u32) -> (i64, i64) {
         let s = self.assessments[t as usize].candidate as usize;
         ((s % self.grid.width) as i64, (s / self.grid.width) as i64)
     }
 
     /// Where triangle `t`'s candidate falls: `Some(half-edge)` when on one of its sides.
+    #[inline]
     fn side_holding(&self, t: u32) -> Option<u32> {
         let p = self.candidate_point(t);
         let [a, b, c] = self.tin.triangle_points(t);
@@ -193,14 +196,12 @@ impl<'a> GreedyMesher<'a> {
     fn insert(&mut self, t: u32) {
         let (x, y) = self.candidate_point(t);
         let side = self.side_holding(t);
-        let p = self.tin.add_point(x, y);
+        let p = self.tin.add_point(x, y, self.grid.vertex_height((x, y)));
         let mut to_legalise = std::mem::take(&mut self.to_legalise);
         match side {
-            Some(e) => {
-                let (made, opposite) = self.tin.split_edge(e, p);
-                self.touched.extend_from_slice(&made);
-                to_legalise.extend_from_slice(&opposite);
-            }
+            Some(e) => self
+                .tin
+                .split_edge(e, p, &mut self.touched, &mut to_legalise),
             None => {
                 let (made, opposite) = self.tin.split_triangle(t, p);
                 self.touched.extend_from_slice(&made);
@@ -228,6 +229,7 @@ impl<'a> GreedyMesher<'a> {
 
     /// Whether the far corner `d` across `e` (`a → b` in triangle `(a, b, c)`, `c` the
     /// new vertex) lies inside the circle through `a`, `b`, `c`.
+    #[inline]
     fn violates_delaunay(&self, e: u32) -> bool {
         let Some([a, b, c, d]) = self.tin.quad_points(e) else {
             return false;
@@ -236,6 +238,7 @@ impl<'a> GreedyMesher<'a> {
     }
 
     /// Records triangle `t`'s assessment and queues it when it is over the settled error.
+    #[inline]
     fn store(&mut self, t: u32, assessment: Assessment) {
         self.assessments[t as usize] = assessment;
         if assessment.error > self.settled {
@@ -259,7 +262,7 @@ impl<'a> GreedyMesher<'a> {
             },
         );
         for &t in &touched {
-            let assessment = assess(&self.grid, self.tin.triangle_points(t));
+            let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
             self.store(t, assessment);
         }
         touched.clear();
@@ -281,12 +284,7 @@ pub fn greedy_mesh(
     let mut aligned = valid.to_bitvec();
     aligned.force_align();
     let valid = aligned.as_raw_slice();
-    let grid = Grid {
-        width,
-        height,
-        heights,
-        valid,
-    };
+    let grid = Grid::new(width, height, heights, valid);
     let mut mesher = GreedyMesher::new(grid)?;
     if optimise.is_some() {
         mesher = mesher.with_resolving_flips();
@@ -405,12 +403,7 @@ mod tests {
         let heights = terrain(w, h);
         let valid = bitvec![u64, Lsb0; 1; w * h];
         let valid_words = valid.as_raw_slice();
-        let grid = Grid {
-            width: w,
-            height: h,
-            heights: &heights,
-            valid: valid_words,
-        };
+        let grid = Grid::new(w, h, &heights, valid_words);
         let count = |resolving: bool| {
             let mut mesher = GreedyMesher::new(grid).unwrap();
             if resolving {

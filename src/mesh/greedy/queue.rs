@@ -17,11 +17,13 @@ pub struct WorstFirst {
 
 impl WorstFirst {
     /// The worst triangle, if any is waiting.
+    #[inline]
     pub fn worst(&self) -> Option<u32> {
         self.heap.first().map(|&(_, t)| t)
     }
 
     /// Queues triangle `t` with `error` (≥ 0), or moves it there if already queued.
+    #[inline]
     pub fn set(&mut self, t: u32, error: f64) {
         if self.position.len() <= t as usize {
             self.position.resize(t as usize + 1, ABSENT);
@@ -46,6 +48,7 @@ impl WorstFirst {
     }
 
     /// Takes triangle `t` out of the queue (nothing when it is not queued).
+    #[inline]
     pub fn remove(&mut self, t: u32) {
         let Some(&at) = self.position.get(t as usize) else {
             return;
@@ -73,6 +76,7 @@ impl WorstFirst {
         self.position[self.heap[at].1 as usize] = at as u32;
     }
 
+    #[inline]
     fn sift_up(&mut self, mut at: usize) {
         while at > 0 {
             let parent = (at - 1) / 2;
@@ -86,6 +90,7 @@ impl WorstFirst {
         self.place(at);
     }
 
+    #[inline]
     fn sift_down(&mut self, mut at: usize) {
         let n = self.heap.len();
         loop {

@@ -5,6 +5,8 @@
 //! ([`EdgeWalk`]); a span of valid samples is read as a flat slice ([`row_worst`],
 //! [`row_errors`]); only rows that meet nodata are read sample by sample.
 
+use super::triangulation::Vertex;
+
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
 pub struct Grid<'a> {
@@ -16,9 +18,28 @@ pub struct Grid<'a> {
     pub heights: &'a [f64],
     /// Valid samples: bit `s % 64` of word `s / 64` (a `BitVec<u64, Lsb0>`'s words).
     pub valid: &'a [u64],
+    /// Whether every sample is valid (rows then need no check).
+    no_nodata: bool,
 }
 
-impl Grid<'_> {
+impl<'a> Grid<'a> {
+    /// The grid of `width × height` `heights` whose valid samples `valid` marks (at
+    /// least `width × height` bits).
+    pub fn new(width: usize, height: usize, heights: &'a [f64], valid: &'a [u64]) -> Grid<'a> {
+        let n = width * height;
+        let (whole, rest) = (n / 64, n % 64);
+        let no_nodata = valid.len() * 64 >= n
+            && valid[..whole].iter().all(|&w| w == u64::MAX)
+            && (rest == 0 || valid[whole] & ((1 << rest) - 1) == (1 << rest) - 1);
+        Grid {
+            width,
+            height,
+            heights,
+            valid,
+            no_nodata,
+        }
+    }
+
     /// Whether sample `s` is valid.
     #[inline]
     pub fn is_valid(&self, s: usize) -> bool {
@@ -28,6 +49,9 @@ impl Grid<'_> {
     /// Whether samples `first..=last` are all valid.
     #[inline]
     fn all_valid(&self, first: usize, last: usize) -> bool {
+        if self.no_nodata {
+            return true;
+        }
         let (w0, w1) = (first >> 6, last >> 6);
         let head = u64::MAX << (first & 63);
         let tail = u64::MAX >> (63 - (last & 63));
@@ -171,6 +195,7 @@ struct Plane {
 
 impl Plane {
     /// The plane through the corners `p` (counter-clockwise) at heights `z`.
+    #[inline]
     fn new(p: [(i64, i64); 3], z: [f64; 3]) -> Plane {
         let [a, b, c] = p;
         let area = ((b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)) as f64;
@@ -184,14 +209,10 @@ impl Plane {
         }
     }
 
-    /// The plane of triangle `p` of `grid` (vertex heights as [`Grid::vertex_height`]).
-    fn of(grid: &Grid, p: [(i64, i64); 3]) -> Plane {
-        let z = [
-            grid.vertex_height(p[0]),
-            grid.vertex_height(p[1]),
-            grid.vertex_height(p[2]),
-        ];
-        Plane::new(p, z)
+    /// The plane through the corners `v` (counter-clockwise).
+    #[inline]
+    fn through(v: [Vertex; 3]) -> Plane {
+        Plane::new(v.map(Vertex::point), v.map(|v| v.z))
     }
 
     /// Height at `(x, y)`.
@@ -294,15 +315,32 @@ pub struct Assessment {
     pub touches_void: bool,
 }
 
-/// The worst sample of the triangle with corners `p` (counter-clockwise).
-pub fn assess(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
-    assess_within(grid, p, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, p))
+/// The worst sample of the triangle with corners `v` (counter-clockwise).
+pub fn assess(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+    let p = v.map(Vertex::point);
+    if holds_only_its_corners(p) {
+        return Assessment {
+            error: 0.0,
+            candidate: u32::MAX,
+            touches_void: p.iter().any(|&q| !grid.is_valid(grid.sample(q))),
+        };
+    }
+    assess_within(grid, v, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, v))
+}
+
+/// Whether no grid sample but its corners lies on or inside the counter-clockwise
+/// triangle `p`: by Pick's theorem (twice the area = 2 · inside + on the outline − 2,
+/// the outline holding the 3 corners at least), exactly when twice its area is 1.
+#[inline]
+fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
+    (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0) == 1
 }
 
 /// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
 /// up to the first row that is not); `None` when it meets nodata or goes over.
-pub fn assess_within(grid: &Grid, p: [(i64, i64); 3], limit: f64) -> Option<Assessment> {
-    let plane = Plane::of(grid, p);
+#[inline]
+pub fn assess_within(grid: &Grid, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
+    let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
     for_each_span(p, |y, lo, hi| {
@@ -313,8 +351,14 @@ pub fn assess_within(grid: &Grid, p: [(i64, i64); 3], limit: f64) -> Option<Asse
         }
         // Corners, exact up to rounding, lie at the ends of their rows' spans and are
         // never candidates.
-        let lo = lo + i64::from(p.contains(&(lo, y)));
-        let hi = hi - i64::from(p.contains(&(hi, y)));
+        let (lo, hi) = if p.iter().any(|q| q.1 == y) {
+            (
+                lo + i64::from(p.contains(&(lo, y))),
+                hi - i64::from(p.contains(&(hi, y))),
+            )
+        } else {
+            (lo, hi)
+        };
         if lo <= hi {
             let first = row + lo as usize;
             let heights = &grid.heights[first..=row + hi as usize];
@@ -335,9 +379,9 @@ pub fn assess_within(grid: &Grid, p: [(i64, i64); 3], limit: f64) -> Option<Asse
 
 /// [`assess`] for a triangle that meets nodata, sample by sample: a valid sample next
 /// to nodata (in scan order) is its candidate, so nodata is cut out first.
-fn assess_with_nodata(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
+fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+    let (p, z) = (v.map(Vertex::point), v.map(|v| v.z));
     let corners = p.map(|q| grid.sample(q));
-    let z = p.map(|q| grid.vertex_height(q));
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
     let (mut touches_void, mut inner_valid) = (false, u32::MAX);
     let mut edge_of_void = u32::MAX;
@@ -391,21 +435,22 @@ fn assess_with_nodata(grid: &Grid, p: [(i64, i64); 3]) -> Assessment {
     }
 }
 
-/// Largest error and sum of squared errors over the valid samples of the triangle `p`
+/// Largest error and sum of squared errors over the valid samples of the triangle `v`
 /// (counter-clockwise).
-pub fn errors(grid: &Grid, p: [(i64, i64); 3]) -> (f64, f64) {
-    errors_within(grid, p, f64::INFINITY, f64::INFINITY).unwrap_or((f64::INFINITY, 0.0))
+pub fn errors(grid: &Grid, v: [Vertex; 3]) -> (f64, f64) {
+    errors_within(grid, v, f64::INFINITY, f64::INFINITY).unwrap_or((f64::INFINITY, 0.0))
 }
 
 /// [`errors`], or `None` as soon as the largest error is over `max_limit` or the sum
 /// reaches `sum_limit` (the rest of the triangle is then not read).
+#[inline]
 pub fn errors_within(
     grid: &Grid,
-    p: [(i64, i64); 3],
+    v: [Vertex; 3],
     max_limit: f64,
     sum_limit: f64,
 ) -> Option<(f64, f64)> {
-    let plane = Plane::of(grid, p);
+    let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut max, mut sum) = (0.0f64, 0.0);
     let mut within = true;
     for_each_span(p, |y, lo, hi| {
@@ -436,15 +481,16 @@ fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64)
     (max, sum)
 }
 
-/// The error at sample `(x, y)` of the plane of triangle `p`, when the sample is on or
+/// The error at sample `(x, y)` of the plane of triangle `v`, when the sample is on or
 /// inside it.
-pub fn error_at(grid: &Grid, p: [(i64, i64); 3], (x, y): (i64, i64)) -> Option<f64> {
+pub fn error_at(grid: &Grid, v: [Vertex; 3], (x, y): (i64, i64)) -> Option<f64> {
+    let p = v.map(Vertex::point);
     let inside = (0..3).all(|k| {
         let (a, b) = (p[k], p[(k + 1) % 3]);
         (b.0 - a.0) * (y - a.1) - (b.1 - a.1) * (x - a.0) >= 0
     });
     let s = grid.sample((x, y));
-    (inside && grid.is_valid(s)).then(|| (Plane::of(grid, p).at(x, y) - grid.heights[s]).abs())
+    (inside && grid.is_valid(s)).then(|| (Plane::through(v).at(x, y) - grid.heights[s]).abs())
 }
 
 #[cfg(test)]
@@ -453,13 +499,17 @@ mod tests {
     use crate::mesh::rasterise::rasterise_triangle;
     use bitvec::prelude::*;
 
+    /// The corners `p` with the heights the mesher gives them.
+    fn corners(g: &Grid, p: [(i64, i64); 3]) -> [Vertex; 3] {
+        p.map(|q| Vertex {
+            x: q.0 as i32,
+            y: q.1 as i32,
+            z: g.vertex_height(q),
+        })
+    }
+
     fn grid<'a>(w: usize, h: usize, heights: &'a [f64], valid: &'a BitVec<u64, Lsb0>) -> Grid<'a> {
-        Grid {
-            width: w,
-            height: h,
-            heights,
-            valid: valid.as_raw_slice(),
-        }
+        Grid::new(w, h, heights, valid.as_raw_slice())
     }
 
     #[test]
@@ -516,6 +566,7 @@ mod tests {
                         .collect();
                     ours.sort_by_key(|&(x, y)| (y, x));
                     assert_eq!(ours, reference, "{a:?} {b:?} {c:?}");
+                    assert_eq!(holds_only_its_corners([a, b, c]), reference.len() == 3);
                     checked += 1;
                 }
             }
@@ -531,13 +582,27 @@ mod tests {
         let valid = bitvec![u64, Lsb0; 1; w * h];
         let g = grid(w, h, &heights, &valid);
         let p = [(0, 0), (7, 0), (0, 7)];
-        assert!(assess_within(&g, p, 1.0).is_none());
-        assert_eq!(assess_within(&g, p, 2.0).unwrap().error, 2.0);
-        assert!(errors_within(&g, p, 1.0, f64::INFINITY).is_none());
-        assert!(errors_within(&g, p, 3.0, 4.0).is_none());
-        assert_eq!(errors_within(&g, p, 3.0, 4.5), Some((2.0, 4.0)));
-        assert_eq!(error_at(&g, p, (2, 3)), Some(2.0));
-        assert_eq!(error_at(&g, p, (6, 6)), None);
+        let v = corners(&g, p);
+        assert!(assess_within(&g, v, 1.0).is_none());
+        assert_eq!(assess_within(&g, v, 2.0).unwrap().error, 2.0);
+        assert!(errors_within(&g, v, 1.0, f64::INFINITY).is_none());
+        assert!(errors_within(&g, v, 3.0, 4.0).is_none());
+        assert_eq!(errors_within(&g, v, 3.0, 4.5), Some((2.0, 4.0)));
+        assert_eq!(error_at(&g, v, (2, 3)), Some(2.0));
+        assert_eq!(error_at(&g, v, (6, 6)), None);
+    }
+
+    #[test]
+    fn rows_meeting_nodata_are_seen_whatever_the_grid_size() {
+        for (w, h) in [(8, 8), (13, 5), (70, 3)] {
+            let heights = vec![0.0; w * h];
+            let mut valid = bitvec![u64, Lsb0; 1; w * h];
+            assert!(grid(w, h, &heights, &valid).all_valid(0, w * h - 1));
+            valid.set(w * h - 1, false);
+            let g = grid(w, h, &heights, &valid);
+            assert!(!g.all_valid(0, w * h - 1));
+            assert!(g.all_valid(0, w * h - 2));
+        }
     }
 
     #[test]
@@ -547,7 +612,8 @@ mod tests {
         heights[2 * w + 1] = 3.0;
         heights[w + 1] = -1.0;
         let valid = bitvec![u64, Lsb0; 1; w * h];
-        let a = assess(&grid(w, h, &heights, &valid), [(0, 0), (4, 0), (0, 4)]);
+        let g = grid(w, h, &heights, &valid);
+        let a = assess(&g, corners(&g, [(0, 0), (4, 0), (0, 4)]));
         assert_eq!(a.candidate as usize, 2 * w + 1);
         assert_eq!(a.error, 3.0);
         assert!(!a.touches_void);
@@ -560,11 +626,11 @@ mod tests {
         let mut valid = bitvec![u64, Lsb0; 1; w * h];
         valid.set(w + 2, false);
         let g = grid(w, h, &heights, &valid);
-        let a = assess(&g, [(0, 0), (4, 0), (0, 4)]);
+        let a = assess(&g, corners(&g, [(0, 0), (4, 0), (0, 4)]));
         assert!(a.touches_void && a.error.is_infinite());
         assert!(g.is_valid(a.candidate as usize));
         // Nodata at a corner, nothing else inside: nothing to insert.
-        let small = assess(&g, [(2, 1), (3, 1), (2, 2)]);
+        let small = assess(&g, corners(&g, [(2, 1), (3, 1), (2, 2)]));
         assert!(small.touches_void);
         assert_eq!(small.error, 0.0);
     }
@@ -577,7 +643,7 @@ mod tests {
             .collect();
         let valid = bitvec![u64, Lsb0; 1; w * h];
         let g = grid(w, h, &heights, &valid);
-        let (max, sum) = errors(&g, [(0, 0), (5, 0), (5, 5)]);
+        let (max, sum) = errors(&g, corners(&g, [(0, 0), (5, 0), (5, 5)]));
         assert!(max < 1e-9 && sum < 1e-18);
     }
 }

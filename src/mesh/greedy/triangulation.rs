@@ -63,11 +63,31 @@ where
     ax * (by * c2 - b2 * cy) - ay * (bx * c2 - b2 * cx) + a2 * (bx * cy - by * cx)
 }
 
+/// A vertex: its grid column and row, and the height the mesh takes there (kept
+/// beside the position so reading a triangle's plane needs no look-up in the grid).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vertex {
+    /// Column.
+    pub x: i32,
+    /// Row.
+    pub y: i32,
+    /// Height.
+    pub z: f64,
+}
+
+impl Vertex {
+    /// (column, row).
+    #[inline]
+    pub fn point(self) -> (i64, i64) {
+        (i64::from(self.x), i64::from(self.y))
+    }
+}
+
 /// Half-edge triangulation of points of a grid.
 #[derive(Debug, Clone, Default)]
 pub struct Triangulation {
-    /// (column, row) of every vertex.
-    pub points: Vec<(i64, i64)>,
+    /// Every vertex.
+    pub points: Vec<Vertex>,
     /// The vertex each half-edge starts at.
     pub corners: Vec<u32>,
     /// The opposite half-edge of each half-edge, or [`NONE`].
@@ -75,13 +95,18 @@ pub struct Triangulation {
 }
 
 impl Triangulation {
-    /// The `width × height` rectangle as two triangles over its four corners.
-    pub fn rectangle(width: usize, height: usize) -> Triangulation {
+    /// The `width × height` rectangle as two triangles over its four corners, whose
+    /// heights `height_at` gives (grids up to 2^31 samples a side).
+    pub fn rectangle(
+        width: usize,
+        height: usize,
+        height_at: impl Fn((i64, i64)) -> f64,
+    ) -> Triangulation {
         let (w, h) = (width as i64 - 1, height as i64 - 1);
-        let mut t = Triangulation {
-            points: vec![(0, 0), (w, 0), (w, h), (0, h)],
-            ..Triangulation::default()
-        };
+        let mut t = Triangulation::default();
+        for (x, y) in [(0, 0), (w, 0), (w, h), (0, h)] {
+            t.add_point(x, y, height_at((x, y)));
+        }
         // Split along (0, 0)–(w, h): half-edge 2 → 0 of the first meets 0 → 2 of the second.
         t.new_slots(2);
         t.set_triangle(0, [0, 1, 2], [NONE, NONE, NONE]);
@@ -91,29 +116,38 @@ impl Triangulation {
     }
 
     /// Triangles, including those a split or flip rewrote in place.
+    #[inline]
     pub fn triangle_count(&self) -> usize {
         self.corners.len() / 3
     }
 
     /// The three vertices of triangle `t`.
+    #[inline]
     pub fn triangle(&self, t: u32) -> [u32; 3] {
         let e = 3 * t as usize;
         [self.corners[e], self.corners[e + 1], self.corners[e + 2]]
     }
 
-    /// The (column, row) of the three corners of triangle `t`.
-    pub fn triangle_points(&self, t: u32) -> [(i64, i64); 3] {
-        let [a, b, c] = self.triangle(t);
-        let p = &self.points;
-        [p[a as usize], p[b as usize], p[c as usize]]
+    /// The three corners of triangle `t`.
+    #[inline]
+    pub fn triangle_vertices(&self, t: u32) -> [Vertex; 3] {
+        self.triangle(t).map(|v| self.points[v as usize])
     }
 
-    /// Adds vertex `(x, y)` and returns its index.
-    pub fn add_point(&mut self, x: i64, y: i64) -> u32 {
-        self.points.push((x, y));
+    /// The (column, row) of the three corners of triangle `t`.
+    pub fn triangle_points(&self, t: u32) -> [(i64, i64); 3] {
+        self.triangle_vertices(t).map(Vertex::point)
+    }
+
+    /// Adds vertex `(x, y)` at height `z` and returns its index.
+    #[inline]
+    pub fn add_point(&mut self, x: i64, y: i64, z: f64) -> u32 {
+        let (x, y) = (x as i32, y as i32);
+        self.points.push(Vertex { x, y, z });
         (self.points.len() - 1) as u32
     }
 
+    #[inline]
     fn link(&mut self, e: u32, f: u32) {
         if e != NONE {
             self.twins[e as usize] = f;
@@ -132,6 +166,7 @@ impl Triangulation {
     }
 
     /// Writes triangle slot `t` with `twins` across its three half-edges.
+    #[inline]
     fn set_triangle(&mut self, t: u32, corners: [u32; 3], twins: [u32; 3]) {
         let e = 3 * t as usize;
         self.corners[e..e + 3].copy_from_slice(&corners);
@@ -156,9 +191,9 @@ impl Triangulation {
     }
 
     /// Splits the edge of half-edge `e` at vertex `p` on it: two triangles become four
-    /// (one becomes two on the border). Returns the triangles made and the half-edges
-    /// opposite `p` (to legalise).
-    pub fn split_edge(&mut self, e: u32, p: u32) -> (Vec<u32>, Vec<u32>) {
+    /// (one becomes two on the border). Appends the triangles made to `made` and the
+    /// half-edges opposite `p` (to legalise) to `opposite` (no allocation a split).
+    pub fn split_edge(&mut self, e: u32, p: u32, made: &mut Vec<u32>, opposite: &mut Vec<u32>) {
         let f = self.twins[e as usize];
         let (a, b, c) = (
             self.corners[e as usize],
@@ -172,7 +207,9 @@ impl Triangulation {
             // t1: a→p, p→c, c→a; n1: p→b, b→c, c→p.
             self.set_triangle(t1, [a, p, c], [NONE, 3 * n1 + 2, x2]);
             self.set_triangle(n1, [p, b, c], [NONE, x1, 3 * t1 + 1]);
-            return (vec![t1, n1], vec![3 * t1 + 2, 3 * n1 + 1]);
+            made.extend_from_slice(&[t1, n1]);
+            opposite.extend_from_slice(&[3 * t1 + 2, 3 * n1 + 1]);
+            return;
         }
         let d = self.corners[prev(f) as usize];
         let (y1, y2) = (self.twins[next(f) as usize], self.twins[prev(f) as usize]);
@@ -182,14 +219,13 @@ impl Triangulation {
         self.set_triangle(n1, [p, b, c], [3 * t2, x1, 3 * t1 + 1]);
         self.set_triangle(t2, [b, p, d], [3 * n1, 3 * n2 + 2, y2]);
         self.set_triangle(n2, [p, a, d], [3 * t1, y1, 3 * t2 + 1]);
-        (
-            vec![t1, n1, t2, n2],
-            vec![3 * t1 + 2, 3 * n1 + 1, 3 * t2 + 2, 3 * n2 + 1],
-        )
+        made.extend_from_slice(&[t1, n1, t2, n2]);
+        opposite.extend_from_slice(&[3 * t1 + 2, 3 * n1 + 1, 3 * t2 + 2, 3 * n2 + 1]);
     }
 
     /// The quadrilateral around the edge of `e` (`e` from `a` to `b` in triangle
     /// `(a, b, c)`, its twin in `(b, a, d)`): `[a, b, c, d]`, or `None` on the border.
+    #[inline]
     pub fn quad(&self, e: u32) -> Option<[u32; 4]> {
         let f = self.twins[e as usize];
         (f != NONE).then(|| {
@@ -202,16 +238,22 @@ impl Triangulation {
         })
     }
 
+    /// [`Triangulation::quad`]'s corners.
+    #[inline]
+    pub fn quad_vertices(&self, e: u32) -> Option<[Vertex; 4]> {
+        Some(self.quad(e)?.map(|v| self.points[v as usize]))
+    }
+
     /// The (column, row) of [`Triangulation::quad`]'s corners.
+    #[inline]
     pub fn quad_points(&self, e: u32) -> Option<[(i64, i64); 4]> {
-        let [a, b, c, d] = self.quad(e)?;
-        let p = &self.points;
-        Some([p[a as usize], p[b as usize], p[c as usize], p[d as usize]])
+        Some(self.quad_vertices(e)?.map(Vertex::point))
     }
 
     /// Replaces the diagonal `a–b` of the quadrilateral around `e` by `c–d` (see
     /// [`Triangulation::quad`]); returns the two half-edges of the new triangles opposite
     /// `c` (`a→d` and `d→b`).
+    #[inline]
     pub fn flip(&mut self, e: u32) -> [u32; 2] {
         let f = self.twins[e as usize];
         let [a, b, c, d] = self.quad(e).expect("an interior edge");
@@ -244,7 +286,10 @@ pub(crate) mod tests {
             let f = t.twins[e as usize];
             let (from, to) = (t.corners[e as usize], t.corners[next(e) as usize]);
             if f == NONE {
-                let (p, q) = (t.points[from as usize], t.points[to as usize]);
+                let (p, q) = (
+                    t.points[from as usize].point(),
+                    t.points[to as usize].point(),
+                );
                 let on_border = |k: usize, v: i64| p_k(p, k) == v && p_k(q, k) == v;
                 let (w, h) = (width as i64 - 1, height as i64 - 1);
                 assert!(on_border(0, 0) || on_border(0, w) || on_border(1, 0) || on_border(1, h));
@@ -266,15 +311,15 @@ pub(crate) mod tests {
 
     #[test]
     fn the_rectangle_is_two_linked_triangles() {
-        let t = Triangulation::rectangle(5, 3);
+        let t = Triangulation::rectangle(5, 3, |_| 0.0);
         assert_eq!(t.triangle_count(), 2);
         assert_consistent(&t, 5, 3);
     }
 
     #[test]
     fn splitting_a_triangle_makes_three() {
-        let mut t = Triangulation::rectangle(9, 9);
-        let p = t.add_point(2, 5);
+        let mut t = Triangulation::rectangle(9, 9, |_| 0.0);
+        let p = t.add_point(2, 5, 0.0);
         let tri = (0..2).find(|&k| {
             let [a, b, c] = t.triangle_points(k);
             orient(a, b, (2, 5)) > 0 && orient(b, c, (2, 5)) > 0 && orient(c, a, (2, 5)) > 0
@@ -287,32 +332,34 @@ pub(crate) mod tests {
 
     #[test]
     fn splitting_interior_and_border_edges() {
-        let mut t = Triangulation::rectangle(9, 9);
+        let mut t = Triangulation::rectangle(9, 9, |_| 0.0);
         // The rectangle's diagonal is its one interior edge.
         let diagonal = (0..6)
             .find(|&e| t.twins[e as usize] != NONE)
             .expect("an interior edge");
-        let p = t.add_point(4, 4);
-        t.split_edge(diagonal, p);
+        let p = t.add_point(4, 4, 0.0);
+        t.split_edge(diagonal, p, &mut Vec::new(), &mut Vec::new());
         assert_eq!(t.triangle_count(), 4);
         assert_consistent(&t, 9, 9);
         let border = (0..t.corners.len() as u32)
             .find(|&e| {
                 let (from, to) = (t.corners[e as usize], t.corners[next(e) as usize]);
                 t.twins[e as usize] == NONE
-                    && t.points[from as usize].1 == 8
-                    && t.points[to as usize].1 == 8
+                    && t.points[from as usize].y == 8
+                    && t.points[to as usize].y == 8
             })
             .unwrap();
-        let q = t.add_point(2, 8);
-        t.split_edge(border, q);
+        let q = t.add_point(2, 8, 0.0);
+        let (mut made, mut opposite) = (Vec::new(), Vec::new());
+        t.split_edge(border, q, &mut made, &mut opposite);
+        assert_eq!((made.len(), opposite.len()), (2, 2));
         assert_eq!(t.triangle_count(), 5);
         assert_consistent(&t, 9, 9);
     }
 
     #[test]
     fn flipping_swaps_the_diagonal() {
-        let mut t = Triangulation::rectangle(3, 3);
+        let mut t = Triangulation::rectangle(3, 3, |_| 0.0);
         let e = (0..6).find(|&e| t.twins[e as usize] != NONE).unwrap();
         let [a, b, c, d] = t.quad(e).unwrap();
         t.flip(e);
