@@ -324,6 +324,12 @@ fn three_corner_cells_cover_every_reachable_sample_of_synthetic_voids() {
     assert!(c.before > c.bound + 100, "{} vs {}", c.before, c.bound);
 }
 
+/// The shared DEM `name` of `dir`.
+fn shared_raster(dir: &std::path::Path, name: &str) -> Raster {
+    let path = dir.join(name).join(format!("{name}.tif"));
+    read_dem(&path, &ReadOptions::default()).unwrap()
+}
+
 /// The shared DEMs with voids and float rasters made 50–80 % NaN from them: every mesh
 /// watertight and covering every reachable valid sample. Prints the coverage table.
 #[test]
@@ -332,10 +338,7 @@ fn shared_dems_cover_every_reachable_sample_needs_shared_dems() {
     else {
         return;
     };
-    let read = |name: &str| {
-        let path = dir.join(name).join(format!("{name}.tif"));
-        read_dem(&path, &ReadOptions::default()).unwrap()
-    };
+    let read = |name: &str| shared_raster(&dir, name);
     let utm = read("srtm3_utm32_f32");
     let fuji = Surface::of(&read("fuji_terrainrgb"));
     let utm_surface = Surface::of(&utm);
@@ -427,10 +430,7 @@ fn view_frames_over_masked_shared_dems_are_crack_free_needs_shared_dems() {
     else {
         return;
     };
-    let read = |name: &str| {
-        let path = dir.join(name).join(format!("{name}.tif"));
-        Surface::of(&read_dem(&path, &ReadOptions::default()).unwrap())
-    };
+    let read = |name: &str| Surface::of(&shared_raster(&dir, name));
     let fuji = read("fuji_terrainrgb");
     check_flight(
         "fuji_terrainrgb ragged sea q76 ±75 m",
