@@ -304,18 +304,18 @@ fn memory_does_not_grow_with_the_raster_width() {
         )
     };
     // A tiled GeoTIFF, one tile row of 1024 x 512 tiles coded and written in blocks of
-    // 8 tiles (the next read or decoded while the current one is coded or written): the
+    // 16 tiles (the next read or decoded while the current one is coded or written): the
     // wider raster has four blocks a row where the narrower has two, and the same peaks.
-    let (narrow, wide) = (peaks(16384), peaks(32768));
+    let (narrow, wide) = (peaks(32768), peaks(65536));
     for (what, narrow, wide) in [("encode", narrow.0, wide.0), ("decode", narrow.1, wide.1)] {
-        println!("{what} heap peak: {narrow} bytes at 16384 x 512, {wide} at 32768 x 512");
+        println!("{what} heap peak: {narrow} bytes at 32768 x 512, {wide} at 65536 x 512");
         assert!(
             wide < narrow + narrow / 8,
-            "{what} peak heap {wide} at 32768 samples across against {narrow} at 16384"
+            "{what} peak heap {wide} at 65536 samples across against {narrow} at 32768"
         );
         // Full-width bands (the tile row and its overlap, this one and the next) alone
         // would take more.
-        let two_rows = 2 * 32768 * 512 * 2;
+        let two_rows = 2 * 65536 * 512 * 2;
         assert!(
             wide < two_rows,
             "{what} peak heap {wide}, two full-width bands {two_rows}"

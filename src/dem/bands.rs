@@ -19,7 +19,7 @@ pub type DemInfo = wavemesh_codec::tiles::RasterInfo;
 /// Samples across a band of tiles read at once when the source reads columns cheaply
 /// (a tiled TIFF decodes only the tiles a window touches): what the command line uses,
 /// so a band costs about this many columns however wide the raster.
-pub const BLOCK_WIDTH: usize = 8192;
+pub const BLOCK_WIDTH: usize = 16384;
 
 /// Where a [`RowBands`] gets its rows.
 enum BandSource {
