@@ -122,21 +122,27 @@ fn decode_with_map(raster: &Raster) -> (Surface, SignificanceMap) {
     (Surface::of(&decoded.raster), decoded.significance.unwrap())
 }
 
-/// Valid samples that no grid cell with four valid corners has as a corner: what the
-/// mesh left uncovered before three-corner cells were meshed.
-fn uncovered_by_full_cells(w: usize, h: usize, valid: &BitSlice<u64, Lsb0>) -> u64 {
-    let mut reached = bitvec![u64, Lsb0; 0; w * h];
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let corners = [
+/// The four corner samples of every grid cell of a `w × h` raster, row by row.
+fn cell_corners(w: usize, h: usize) -> impl Iterator<Item = [usize; 4]> {
+    (0..h - 1).flat_map(move |y| {
+        (0..w - 1).map(move |x| {
+            [
                 y * w + x,
                 y * w + x + 1,
                 (y + 1) * w + x,
                 (y + 1) * w + x + 1,
-            ];
-            if corners.iter().all(|&s| valid[s]) {
-                corners.iter().for_each(|&s| reached.set(s, true));
-            }
+            ]
+        })
+    })
+}
+
+/// Valid samples that no grid cell with four valid corners has as a corner: what the
+/// mesh left uncovered before three-corner cells were meshed.
+fn uncovered_by_full_cells(w: usize, h: usize, valid: &BitSlice<u64, Lsb0>) -> u64 {
+    let mut reached = bitvec![u64, Lsb0; 0; w * h];
+    for corners in cell_corners(w, h) {
+        if corners.iter().all(|&s| valid[s]) {
+            corners.iter().for_each(|&s| reached.set(s, true));
         }
     }
     valid.iter_ones().filter(|&s| !reached[s]).count() as u64
@@ -145,19 +151,11 @@ fn uncovered_by_full_cells(w: usize, h: usize, valid: &BitSlice<u64, Lsb0>) -> u
 /// Grid cells with four and with three valid corners.
 fn meshable_cells(w: usize, h: usize, valid: &BitSlice<u64, Lsb0>) -> (u64, u64) {
     let (mut full, mut three) = (0, 0);
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let corners = [
-                y * w + x,
-                y * w + x + 1,
-                (y + 1) * w + x,
-                (y + 1) * w + x + 1,
-            ];
-            match corners.iter().filter(|&&s| valid[s]).count() {
-                4 => full += 1,
-                3 => three += 1,
-                _ => {}
-            }
+    for corners in cell_corners(w, h) {
+        match corners.iter().filter(|&&s| valid[s]).count() {
+            4 => full += 1,
+            3 => three += 1,
+            _ => {}
         }
     }
     (full, three)
@@ -445,13 +443,9 @@ fn view_frames_over_masked_shared_dems_are_crack_free_needs_shared_dems() {
     check_flight("alps_srtm_voids", &alps, 6);
 }
 
-/// `mesh --json` reports the bound beside the uncovered samples, and meets it.
-#[test]
-fn cli_mesh_report_gives_the_uncoverable_samples() {
-    let dir = support::scratch("void_coverage");
-    let out = dir.path().join("voids.obj");
-    let input = support::sample("jacksboro_voids.tif");
-    let report = support::json(&[
+/// The JSON report of `mesh INPUT -o OUT --method zerotree`.
+fn zerotree_mesh_report(input: &std::path::Path, out: &std::path::Path) -> serde_json::Value {
+    support::json(&[
         "mesh",
         input.to_str().unwrap(),
         "-o",
@@ -459,7 +453,16 @@ fn cli_mesh_report_gives_the_uncoverable_samples() {
         "--method",
         "zerotree",
         "--json",
-    ]);
+    ])
+}
+
+/// `mesh --json` reports the bound beside the uncovered samples, and meets it.
+#[test]
+fn cli_mesh_report_gives_the_uncoverable_samples() {
+    let dir = support::scratch("void_coverage");
+    let out = dir.path().join("voids.obj");
+    let input = support::sample("jacksboro_voids.tif");
+    let report = zerotree_mesh_report(&input, &out);
     let mesh = &report["mesh"];
     let bound = mesh["uncoverable_samples"].as_u64().unwrap();
     assert!(
@@ -480,15 +483,7 @@ fn cli_meshes_a_lone_three_corner_cell() {
     )
     .unwrap();
     let out = dir.path().join("corner.obj");
-    let report = support::json(&[
-        "mesh",
-        input.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--method",
-        "zerotree",
-        "--json",
-    ]);
+    let report = zerotree_mesh_report(&input, &out);
     assert_eq!(report["mesh"]["triangles"], 1);
     assert_eq!(report["mesh"]["error_vs_decoded"]["uncovered_samples"], 0);
 }
