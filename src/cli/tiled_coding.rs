@@ -135,7 +135,7 @@ const GEOTIFF_TILE: u32 = 256;
 fn decode_block_columns(grid: &TileGrid) -> usize {
     let tile = GEOTIFF_TILE as usize;
     if grid.tile_width.is_multiple_of(tile) && grid.tile_height.is_multiple_of(tile) {
-        (BLOCK_WIDTH / grid.tile_width).clamp(1, grid.columns())
+        grid.tiles_within(BLOCK_WIDTH)
     } else {
         grid.columns()
     }

@@ -97,7 +97,7 @@ impl RowBands {
     /// else a whole tile row (a strip is decoded at full width anyway).
     pub fn tiles_per_block(&self, grid: &TileGrid, block_width: usize) -> usize {
         if self.reads_columns() {
-            (block_width / grid.tile_width).clamp(1, grid.columns())
+            grid.tiles_within(block_width)
         } else {
             grid.columns()
         }

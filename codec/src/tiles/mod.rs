@@ -164,6 +164,12 @@ impl TileGrid {
         }
     }
 
+    /// Tiles of a row that fit in `columns` samples across: at least one, at most the
+    /// row.
+    pub fn tiles_within(&self, columns: usize) -> usize {
+        (columns / self.tile_width).clamp(1, self.columns())
+    }
+
     /// Runs of `per_block` tiles (the last of a row narrower) of each tile row, in file
     /// order: row by row, left to right, as (row, tile columns).
     pub fn blocks(&self, per_block: usize) -> Vec<(usize, std::ops::Range<usize>)> {
