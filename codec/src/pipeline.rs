@@ -523,6 +523,28 @@ pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, Cod
         .collect())
 }
 
+/// Adds to `tally` the first decisions of every context model in `raster`'s complete
+/// stream with `wavelet` (lossless 5/3, or 9/7 at its finest step): the training of
+/// coder 3's starting probabilities (see [`ezw::PriorTally`]).
+pub fn tally_priors(
+    raster: &Raster,
+    wavelet: Wavelet,
+    tally: &mut ezw::PriorTally,
+) -> Result<(), CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let levels = wavelet::default_levels(width, height);
+    let norms = wavelet::coding_norms(wavelet, width, height, levels);
+    let mask = raster.valid_mask();
+    let prepared = match wavelet {
+        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms)?,
+        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms),
+    };
+    let subbands = wavelet::subbands(width, height, levels);
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    ezw::tally_priors(&layout, &prepared.coefficients, tally);
+    Ok(())
+}
+
 /// Coefficients and parameters ready for the EZW coder.
 struct Prepared {
     coefficients: Vec<i32>,
