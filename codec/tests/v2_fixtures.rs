@@ -82,6 +82,26 @@ fn v2_nodata_and_georeferencing_survive() {
     assert!(nan.raster.nodata.is_some_and(f64::is_nan));
 }
 
+/// Files of coder 2 (before its models started trained, commit 4cea2bc), made from the
+/// decoded `i16_nodata_georef_lossless` fixture: lossless, and 9/7 cut at 200 bytes.
+#[test]
+fn coder_2_fixtures_decode_to_their_recorded_samples() {
+    for name in ["coder2_i16_lossless", "coder2_i16_97_200_bytes"] {
+        let decoded = decode(&fixture(&format!("{name}.ezw")), &DecodeOptions::default()).unwrap();
+        assert_eq!(decoded.header.coder, Coder::V2, "{name} coder");
+        assert!(decoded.damage.is_none(), "{name} damage");
+        assert_eq!(
+            raw(&decoded.raster.samples),
+            fixture(&format!("{name}.decoded")),
+            "{name} samples"
+        );
+    }
+    assert_eq!(
+        fixture("coder2_i16_lossless.decoded"),
+        fixture("i16_nodata_georef_lossless.decoded")
+    );
+}
+
 #[test]
 fn new_files_say_coder_3_and_decode_exactly() {
     let file = fixture("i16_nodata_georef_lossless.ezw");
