@@ -6,8 +6,11 @@
 //! ([`v1`]) and 2; everything after the header is the same in both.
 
 mod number;
+mod sections;
 mod v1;
 mod v2;
+
+pub(crate) use sections::StreamSections;
 
 use crate::error::CodecError;
 use crate::ezw::{Coder, PassRecord, MAX_PLANE};

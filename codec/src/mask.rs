@@ -7,6 +7,7 @@
 
 use bitvec::prelude::{BitSlice, BitVec, Lsb0};
 
+use crate::container::{unframe, Header};
 use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitModel, BitSink};
 
 /// A validity mask, one bit per sample (`true` = valid), as the decoder keeps it.
@@ -57,6 +58,20 @@ pub fn encode_mask(mask: &[bool], width: usize) -> Vec<u8> {
         encoder.encode(valid, &mut models[ctx]);
     }
     encoder.finish()
+}
+
+/// Valid samples of a single-stream file, `data` read from its start: all of them
+/// without a nodata mask, else those its mask marks valid (a damaged or missing mask
+/// decodes as far as it goes). The mask decodes to one bit a sample: check the header's
+/// [`Header::sample_count`] against your limits first.
+pub fn valid_sample_count(data: &[u8], header: &Header, header_len: usize) -> u64 {
+    let samples = header.sample_count();
+    if header.mask_len == 0 {
+        return samples;
+    }
+    let framed = data.get(header_len..).unwrap_or(&[]);
+    let mask = unframe(framed, header.mask_len as usize);
+    decode_mask(&mask.bytes, header.width as usize, samples as usize).count_ones() as u64
 }
 
 /// Decodes a mask of `count` samples written by [`encode_mask`].

@@ -18,6 +18,12 @@
 use crate::error::CodecError;
 use crate::raster::Raster;
 
+mod prepare;
+mod samples;
+
+pub(crate) use prepare::{prepare_53, prepare_97, Prepared};
+pub(crate) use samples::{rescale_97, to_samples};
+
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
 pub const MAX_INTEGER_MAGNITUDE: f64 = (1u64 << 26) as f64;
 

@@ -15,7 +15,8 @@ use std::io;
 
 pub use allocate::allocate;
 pub use index::{read_header, TileEntry, TiledLayout};
-pub use stream::{cut_tile, encode_tile, EncodedTile, TileSummary};
+pub(crate) use stream::cut_tile;
+pub use stream::{encode_tile, EncodedTile, TileSummary};
 
 use crate::container::{frame, Header, Mode, Tiling};
 use crate::error::CodecError;
@@ -32,7 +33,7 @@ pub const DEFAULT_TILE: u32 = 1024;
 /// (the decoder drops them): a wavelet transform reconstructs the samples on the edge of
 /// what it codes worst (symmetric extension doubles their error), so those fall outside
 /// the tile. Two samples bring the tile borders' error down to the interior's.
-pub const TILE_OVERLAP: usize = 2;
+pub(crate) const TILE_OVERLAP: usize = 2;
 
 /// A rectangle of samples: its top-left corner and size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -419,7 +420,7 @@ pub fn cut_to_budget<E: From<CodecError>>(
 /// cap cut their stream and that the allocation of `budget` reads through their last
 /// complete pass — it knows nothing of them beyond the cap, so it may be starving them.
 /// Empty when no cap binds.
-pub fn starved_tiles(
+pub(crate) fn starved_tiles(
     tiles: &[EncodedTile],
     info: &RasterInfo,
     grid: &TileGrid,
@@ -494,7 +495,7 @@ fn cut_recoded(
 /// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
 /// it needs: the header and index, then for each tile the window touches the prefix
 /// [`allocate`] gives it under `options.max_bytes` (all of it without a budget).
-pub fn decode_layout(
+pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
     window: Option<Window>,
