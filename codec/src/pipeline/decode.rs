@@ -173,27 +173,7 @@ fn decode_stream(
     let payload_present = sections.payload_check.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
     let payload_complete = payload_present && !header.payload_truncated;
-    let (width, height) = (header.width as usize, header.height as usize);
-    let subbands = wavelet::subbands(width, height, header.levels as u32);
-    let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
-    let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
-    let source = ArithmeticDecoder::new_framed(
-        sections.payload_framed,
-        sections.payload_check.data_len,
-        CHUNK,
-        4,
-        payload_complete,
-    );
-    let decoder = Decoder::run_from(
-        &layout,
-        header.coder,
-        source,
-        header.top_plane.map(u32::from),
-        options.max_passes,
-    );
-    let significance = options
-        .significance_map
-        .then(|| decoder.significance(&layout));
+    let (decoder, significance) = run_zerotree(&header, sections, payload_complete, options);
     let passes_decoded = decoder.passes_completed;
     let ezw_complete = decoder.complete && payload_complete;
     let mask = sections.mask.as_ref().map(Mask::as_bitslice);
@@ -201,7 +181,7 @@ fn decode_stream(
     progress::report(Stage::Transform, 1, 1);
     let residuals_complete =
         apply_residual_section(&header, sections, &mut samples, mask, ezw_complete);
-    let mut raster = Raster::new(width, height, samples)?;
+    let mut raster = Raster::new(header.width as usize, header.height as usize, samples)?;
     raster.nodata = header.nodata;
     raster.georef = header.georef.clone();
     raster.metadata = header.metadata.clone();
@@ -223,6 +203,38 @@ fn decode_stream(
         header,
         significance,
     })
+}
+
+/// Runs the zerotree decoder over the payload (as far as `options` let it), and takes
+/// the significance map from it when `options` ask for one.
+fn run_zerotree(
+    header: &Header,
+    sections: &StreamSections,
+    payload_complete: bool,
+    options: &DecodeOptions,
+) -> (Decoder, Option<SignificanceMap>) {
+    let (width, height) = (header.width as usize, header.height as usize);
+    let subbands = wavelet::subbands(width, height, header.levels as u32);
+    let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
+    let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
+    let source = ArithmeticDecoder::new_framed(
+        sections.payload_framed,
+        sections.payload_check.data_len,
+        CHUNK,
+        4,
+        payload_complete,
+    );
+    let decoder = Decoder::run_from(
+        &layout,
+        header.coder,
+        source,
+        header.top_plane.map(u32::from),
+        options.max_passes,
+    );
+    let significance = options
+        .significance_map
+        .then(|| decoder.significance(&layout));
+    (decoder, significance)
 }
 
 /// The decoded coefficients through the inverse transform to samples. In place: the

@@ -162,11 +162,10 @@ pub(crate) fn encode_stream(
     let prepared = prepare(raster, &mask, options, &norms)?;
     let subbands = wavelet::subbands(width, height, levels);
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
-    let mask_bytes = mask_section(&mask, width, has_voids);
-    let residual_bytes = if prepared.residuals.is_empty() {
-        Vec::new()
-    } else {
-        encode_residuals(&prepared.residuals)
+    let mut sections = Sections {
+        mask: mask_section(&mask, width, has_voids),
+        payload: Vec::new(),
+        residual: residual_section(&prepared.residuals),
     };
     let top = ezw::top_plane(&layout, &prepared.coefficients);
     let steps = top.map_or(1, |t| u64::from(t) + 2);
@@ -181,33 +180,23 @@ pub(crate) fn encode_stream(
         has_voids,
         top,
     );
-    header.mask_len = mask_bytes.len() as u32;
-    header.residual_len = residual_bytes.len() as u32;
-    // With a budget, the payload may use what the smallest possible header leaves.
+    header.mask_len = sections.mask.len() as u32;
+    header.residual_len = sections.residual.len() as u32;
     let budget = options.budget_bytes.map(|b| b as usize);
-    // The smallest file there is: header, framed mask, empty payload, empty ladder.
-    let fixed = container::assembled_len(&header, mask_bytes.len(), 0, 0);
-    if let Some(total) = budget {
-        if total < fixed {
-            return Err(CodecError::InvalidParameters(format!(
-                "a budget of {total} bytes is smaller than the header and nodata mask ({fixed} bytes)"
-            )));
-        }
-    }
     let payload = ezw::encode(
         &layout,
         &prepared.coefficients,
         &prepared.distortion_weights,
         prepared.midpoint,
-        budget.map(|total| total - fixed),
+        payload_budget(&header, sections.mask.len(), budget)?,
     );
     let initial_error = payload.initial_error;
-    let mut sections = Sections {
-        mask: mask_bytes,
-        payload: Vec::new(),
-        residual: residual_bytes,
-    };
     fit_to_budget(&mut header, &mut sections, payload, budget);
+    Ok(assemble(header, sections, initial_error))
+}
+
+/// The file of `header` and `sections`, and the sections a corrected file reuses.
+fn assemble(mut header: Header, sections: Sections, initial_error: f64) -> (Encoded, Parts) {
     let (bytes, header_len) = container::assemble(
         &mut header,
         &sections.mask,
@@ -224,7 +213,33 @@ pub(crate) fn encode_stream(
         mask: sections.mask,
         payload: sections.payload,
     };
-    Ok((encoded, parts))
+    (encoded, parts)
+}
+
+/// The coded exact float residuals: empty when there are none.
+fn residual_section(residuals: &[i32]) -> Vec<u8> {
+    if residuals.is_empty() {
+        Vec::new()
+    } else {
+        encode_residuals(residuals)
+    }
+}
+
+/// What a file of at most `budget` bytes leaves the payload: the budget less the
+/// smallest possible file (header, framed mask, empty payload, empty ladder); refused
+/// when not even that fits.
+fn payload_budget(
+    header: &Header,
+    mask_len: usize,
+    budget: Option<usize>,
+) -> Result<Option<usize>, CodecError> {
+    let fixed = container::assembled_len(header, mask_len, 0, 0);
+    match budget {
+        Some(total) if total < fixed => Err(CodecError::InvalidParameters(format!(
+            "a budget of {total} bytes is smaller than the header and nodata mask ({fixed} bytes)"
+        ))),
+        _ => Ok(budget.map(|total| total - fixed)),
+    }
 }
 
 /// The header of a stream of `prepared` coefficients from `top` down, its sections
@@ -330,7 +345,7 @@ fn fit_to_budget(
             }
             break;
         }
-        // `fixed <= total` guarantees an empty payload fits, so this terminates.
+        // `payload_budget` made sure an empty payload fits, so this terminates.
         keep = keep.saturating_sub(over);
     }
     sections.payload.truncate(keep);
