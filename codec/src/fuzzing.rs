@@ -14,6 +14,7 @@
 //! | [`roundtrip`] | `roundtrip` | parameter bytes + a raster (≤ 64 × 64) |
 
 use crate::container::{self, Header, Mode, CHUNK};
+use crate::mask::valid_sample_count;
 use crate::pipeline::{
     decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
 };
@@ -234,20 +235,20 @@ fn inspect_tiled(layout: &TiledLayout) {
     }
 }
 
-/// The valid-sample count `info` takes from a single stream's nodata mask.
+/// The valid-sample count `info` takes from a single stream's nodata mask: refused
+/// over the limits, else at most the sample count.
 fn inspect_single(data: &[u8]) {
     let Ok((header, header_len)) = Header::parse(data) else {
         return;
     };
     let samples = header.sample_count();
-    if header.mask_len == 0 || samples > DECODE_FUZZ_LIMITS.max_samples {
-        return;
+    match valid_sample_count(data, &header, header_len, &DECODE_FUZZ_LIMITS) {
+        Ok(valid) => assert!(valid <= samples, "{valid} valid samples of {samples}"),
+        Err(e) => assert!(
+            samples > DECODE_FUZZ_LIMITS.max_samples || samples / 8 > DECODE_FUZZ_LIMITS.max_memory,
+            "{samples} samples refused: {e}"
+        ),
     }
-    let framed = data.get(header_len..).unwrap_or(&[]);
-    let mask = container::unframe(framed, header.mask_len as usize);
-    let (width, count) = (header.width as usize, samples as usize);
-    let valid = crate::mask::decode_mask(&mask.bytes, width, count).count_ones();
-    assert!(valid <= count, "{valid} valid samples of {count}");
 }
 
 /// Rewrites the CRC of every complete chunk of a framed section of `framed_total` bytes

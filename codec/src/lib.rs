@@ -18,7 +18,7 @@
 //! - At the root: [`encode`], [`decode`] and [`decode_window`] with their options,
 //!   results and [`CodecError`]; the [`Raster`] they code with its georeferencing and
 //!   metadata; the file's [`Header`].
-//! - [`format`]: reading a file without decoding it (the header's records, checksums,
+//! - [`format`](mod@format): reading a file without decoding it (the header's records, checksums,
 //!   byte offsets), as `info` and `verify` tools need.
 //! - [`tiles`]: the tiled layout of large rasters, for windowed and remote decoding and
 //!   for encoding a tile (or a block of tiles) at a time.

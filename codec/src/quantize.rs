@@ -3,13 +3,13 @@
 //! Every stream stores its samples as integers `q` with `value = offset + step · q`
 //! (computed in `f64`, then narrowed to the sample type):
 //! - integer sources, lossless: `offset = min`, `step = 1`;
-//! - integer sources, `--max-error E`: `step = 2⌊E⌋ + 1`, `q = ⌊(v − min + ⌊E⌋) / step⌋`,
+//! - integer sources, `Quality::MaxError(E)`: `step = 2⌊E⌋ + 1`, `q = ⌊(v − min + ⌊E⌋) / step⌋`,
 //!   which keeps every sample within `⌊E⌋` (the near-lossless quantiser of JPEG-LS);
 //! - float sources whose values all lie exactly on a decimal or binary grid (Terrain-RGB's
 //!   0.1 m, for instance): `offset = 0`, `step` = that grid, lossless;
 //! - other float sources, lossless: a grid `step` close to the data's precision plus an
 //!   exact per-sample residual on the `f32` bit patterns (see [`crate::residual`]);
-//! - float sources with `--max-error E` or `--precision STEP`: `step = 2E` (or STEP),
+//! - float sources with `Quality::MaxError(E)` or `Quality::Precision(STEP)`: `step = 2E` (or STEP),
 //!   `q = round(v / step)`, checked sample by sample.
 //!
 //! Nodata samples are filled before the transform with a smooth continuation of their

@@ -355,7 +355,9 @@ pub fn info<'py>(
             limits.max_samples, limits.max_memory
         )));
     }
-    let valid = py.detach(|| valid_sample_count(data, &header, header_len) as usize);
+    let valid = py
+        .detach(|| valid_sample_count(data, &header, header_len, &limits))
+        .map_err(codec_error)? as usize;
     let payload_start = (header_len + header.mask_len as usize) as u64;
     let expected = payload_start + header.payload_len + u64::from(header.residual_len);
     let out = PyDict::new(py);

@@ -847,7 +847,8 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
     args.limit_args
         .check("the header's raster", samples, mask_bytes)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let valid = valid_sample_count(&data, &header, header_len) as f64;
+    let valid = valid_sample_count(&data, &header, header_len, &args.limit_args.limits())
+        .map_err(|e| CliError::Stream(args.input.clone(), e))? as f64;
     let range = header.valid_range.1 - header.valid_range.0;
     let passes = header
         .passes

@@ -33,7 +33,7 @@ pub const DEFAULT_TILE: u32 = 1024;
 /// (the decoder drops them): a wavelet transform reconstructs the samples on the edge of
 /// what it codes worst (symmetric extension doubles their error), so those fall outside
 /// the tile. Two samples bring the tile borders' error down to the interior's.
-pub(crate) const TILE_OVERLAP: usize = 2;
+pub const TILE_OVERLAP: usize = 2;
 
 /// A rectangle of samples: its top-left corner and size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -393,7 +393,7 @@ pub fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64>
 
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
 /// allocation would read to the end are first coded again by `recode(k, cap)`, as
-/// [`starved_tiles`] says, until the budget, not a cap, ends every tile (at most six
+/// `starved_tiles` says, until the budget, not a cap, ends every tile (at most six
 /// rounds). The index shrinks with the cut (fewer passes to list), so the header and
 /// index are first counted without passes, then the excess of each try, if any, is
 /// taken off the tiles' share.
