@@ -902,6 +902,17 @@ mod tests {
     }
 
     #[test]
+    fn every_coder_round_trips() {
+        for coder in [Coder::V1, Coder::V2, Coder::V3] {
+            let mut h = sample_header();
+            h.coder = coder;
+            h.mask_len = 0;
+            let (bytes, _) = assemble(&mut h, &[], &[1, 2, 3], &[]);
+            assert_eq!(Header::parse(&bytes).unwrap().0.coder, coder);
+        }
+    }
+
+    #[test]
     fn framing_detects_damage_and_tolerates_truncation() {
         let data: Vec<u8> = (0..40_000u32).map(|i| (i * 7 % 251) as u8).collect();
         let framed = frame(&data);

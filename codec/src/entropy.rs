@@ -23,6 +23,9 @@ const PROB_FLOOR: u32 = 64;
 /// Adaptation rates (right shifts) of the fast and slow estimates.
 const FAST_RATE: u32 = 4;
 const SLOW_RATE: u32 = 7;
+/// The age a [primed](BitModel::primed) model starts at: its first update moves it by
+/// 1/32 (the fast estimate by 1/16), as if four bits had been seen.
+pub const PRIMED_AGE: u16 = 4;
 
 /// An adaptive estimate of the probability that the next bit in its context is 0.
 #[derive(Debug, Clone, Copy)]
@@ -46,6 +49,24 @@ impl BitModel {
             fast: 1 << 15,
             slow: 1 << 15,
             count: 0,
+        }
+    }
+
+    /// A model that starts from the probability `p0` of a 0 bit (in 1/65536 units,
+    /// clamped to the range the estimates keep), as sure of it as
+    /// [`PRIMED_AGE`] bits would have made it.
+    pub const fn primed(p0: u16) -> BitModel {
+        let p = if (p0 as u32) < PROB_FLOOR {
+            PROB_FLOOR as u16
+        } else if p0 as u32 > PROB_ONE - PROB_FLOOR {
+            (PROB_ONE - PROB_FLOOR) as u16
+        } else {
+            p0
+        };
+        BitModel {
+            fast: p,
+            slow: p,
+            count: PRIMED_AGE,
         }
     }
 

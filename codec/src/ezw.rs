@@ -22,7 +22,8 @@
 //! (for coefficients with children) zerotree root? Each decision has its own adaptive
 //! [`BitModel`], chosen by subband class and by what is known of the coefficient's
 //! spatial neighbours and of its parent: their significance ([`Coder::V1`]) or their
-//! magnitudes and signs ([`Coder::V2`], what new streams use; see [`Contexts`]).
+//! magnitudes and signs ([`Coder::V2`]; [`Coder::V3`], what new streams use, starts
+//! those models from trained probabilities; see [`Contexts`]).
 //!
 //! Encoder and decoder run the same scan ([`scan_pass`]) with a different [`Side`]; the
 //! decoder stops at the first decision its bytes cannot determine, leaving every
@@ -34,9 +35,12 @@ use crate::significance::SignificanceMap;
 use crate::wavelet::{Orientation, Subband};
 
 mod contexts;
+mod priors;
 
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
+use priors::TallySink;
+pub use priors::{PriorTally, PRIOR_WINDOW};
 
 /// Flag bits kept per coefficient during a scan.
 const SIG: u8 = 1; // significant
@@ -779,7 +783,8 @@ pub fn encode(
         over_budget: false,
         midpoint,
     };
-    let (side, passes, complete) = run_encoder(layout, side, top, ContextChoice::ALL);
+    let mut contexts = Contexts::default();
+    let (side, passes, complete) = run_encoder(layout, side, top, &mut contexts);
     let bytes = side.sink.finish();
     let mut passes = passes;
     for pass in &mut passes {
@@ -805,20 +810,19 @@ fn report_pass(layout: &CoefficientLayout, done: u32, steps: u32) {
     );
 }
 
-/// Runs every pass of the encoder over `side`'s sink.
+/// Runs every pass of the encoder over `side`'s sink with the models `contexts`.
 fn run_encoder<'a, B: BitSink>(
     layout: &CoefficientLayout,
     mut side: EncoderSide<'a, B>,
     top: Option<u32>,
-    choice: ContextChoice,
+    contexts: &mut Contexts,
 ) -> (EncoderSide<'a, B>, Vec<PassRecord>, bool) {
     let mut grid = FlagGrid::new(layout.width, layout.height);
-    let mut contexts = Contexts::new(Coder::default(), choice);
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
         for n in (0..=top).rev() {
-            match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
+            match scan_pass(layout, &mut grid, contexts, &mut side, n) {
                 ScanEnd::Finished => {
                     passes.push(PassRecord {
                         plane: n,
@@ -838,25 +842,50 @@ fn run_encoder<'a, B: BitSink>(
     (side, passes, complete)
 }
 
-/// Ideal code length in bits of the complete stream for `coefficients` with the models
-/// selected by `choice` (no bytes are produced): what each context buys is the
+/// Ideal code length in bits of the complete stream for `coefficients` with coder 2's
+/// models selected by `choice` (no bytes are produced): what each context buys is the
 /// difference to [`ContextChoice::ALL`].
 pub fn count_bits(layout: &CoefficientLayout, coefficients: &[i32], choice: ContextChoice) -> f64 {
     let descendants = descendant_masks(layout, coefficients);
+    let mut contexts = Contexts::new(Coder::V2, choice);
     let weights = vec![0.0; layout.bands.len()];
-    let side = EncoderSide {
-        sink: BitCounter::new(),
+    let side = measuring_side(BitCounter::new(), coefficients, &descendants, &weights);
+    let top = top_plane(layout, coefficients);
+    let (side, _, _) = run_encoder(layout, side, top, &mut contexts);
+    side.sink.bits()
+}
+
+/// Adds to `tally` the first decisions of every model of coder 2 in the complete stream
+/// for `coefficients` (see [`PriorTally`]).
+pub fn tally_priors(layout: &CoefficientLayout, coefficients: &[i32], tally: &mut PriorTally) {
+    let descendants = descendant_masks(layout, coefficients);
+    let mut contexts = Contexts::new(Coder::V2, ContextChoice::ALL);
+    let weights = vec![0.0; layout.bands.len()];
+    let side = measuring_side(TallySink::default(), coefficients, &descendants, &weights);
+    let top = top_plane(layout, coefficients);
+    let (side, _, _) = run_encoder(layout, side, top, &mut contexts);
+    tally.add(&contexts, &side.sink);
+}
+
+/// An encoder side over `sink` that only measures (`band_weights` zero: no distortion
+/// bookkeeping).
+fn measuring_side<'a, B: BitSink>(
+    sink: B,
+    coefficients: &'a [i32],
+    descendants: &'a [u64],
+    band_weights: &'a [f64],
+) -> EncoderSide<'a, B> {
+    EncoderSide {
+        sink,
         coefficients,
         known: vec![0; coefficients.len()],
-        descendants: &descendants,
-        band_weights: &weights,
+        descendants,
+        band_weights,
         squared_error: 0.0,
         budget: None,
         over_budget: false,
         midpoint: Midpoint::Integer,
-    };
-    let (side, _, _) = run_encoder(layout, side, top_plane(layout, coefficients), choice);
-    side.sink.bits()
+    }
 }
 
 /// Decoder side: fills signed magnitudes bit by bit.
@@ -1096,7 +1125,14 @@ mod tests {
         let weights = vec![1.0; layout.bands.len()];
         let enc = encode(&layout, coefficients, &weights, Midpoint::Integer, None);
         assert!(enc.complete);
-        let dec = Decoder::run(&layout, Coder::V2, &enc.bytes, true, enc.top_plane, None);
+        let dec = Decoder::run(
+            &layout,
+            Coder::default(),
+            &enc.bytes,
+            true,
+            enc.top_plane,
+            None,
+        );
         assert!(dec.complete);
         assert_eq!(dec.integer_coefficients(), coefficients);
     }
@@ -1134,7 +1170,7 @@ mod tests {
             let complete = cut == enc.bytes.len();
             let dec = Decoder::run(
                 &layout,
-                Coder::V2,
+                Coder::default(),
                 &enc.bytes[..cut],
                 complete,
                 enc.top_plane,
@@ -1180,7 +1216,7 @@ mod tests {
         for (k, record) in enc.passes.iter().enumerate() {
             let dec = Decoder::run(
                 &layout,
-                Coder::V2,
+                Coder::default(),
                 &enc.bytes,
                 true,
                 enc.top_plane,
@@ -1200,7 +1236,7 @@ mod tests {
             // The recorded byte count suffices to decode the whole pass.
             let prefix = Decoder::run(
                 &layout,
-                Coder::V2,
+                Coder::default(),
                 &enc.bytes[..record.end_byte as usize],
                 record.end_byte as usize == enc.bytes.len(),
                 enc.top_plane,

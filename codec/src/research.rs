@@ -4,7 +4,7 @@
 use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;
-use crate::quantize::prepare_53;
+use crate::quantize::{prepare_53, prepare_97};
 use crate::raster::Raster;
 use crate::wavelet::{self, Wavelet};
 
@@ -25,6 +25,30 @@ pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, Cod
             (name, bits)
         })
         .collect())
+}
+
+pub use crate::ezw::{PriorTally, PRIOR_WINDOW};
+
+/// Adds to `tally` the first decisions of every context model in `raster`'s complete
+/// stream with `wavelet` (lossless 5/3, or 9/7 at its finest step): the training of
+/// coder 3's starting probabilities (see [`PriorTally`]).
+pub fn tally_priors(
+    raster: &Raster,
+    wavelet: Wavelet,
+    tally: &mut PriorTally,
+) -> Result<(), CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let levels = wavelet::default_levels(width, height);
+    let norms = wavelet::coding_norms(wavelet, width, height, levels);
+    let mask = raster.valid_mask();
+    let prepared = match wavelet {
+        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms)?,
+        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms),
+    };
+    let subbands = wavelet::subbands(width, height, levels);
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    ezw::tally_priors(&layout, &prepared.coefficients, tally);
+    Ok(())
 }
 
 /// Every context, each one left out in turn, and none.

@@ -83,15 +83,15 @@ fn v2_nodata_and_georeferencing_survive() {
 }
 
 #[test]
-fn new_files_say_coder_2_and_decode_exactly() {
+fn new_files_say_coder_3_and_decode_exactly() {
     let file = fixture("i16_nodata_georef_lossless.ezw");
     let old = decode(&file, &DecodeOptions::default()).unwrap();
     let options = wavemesh_codec::EncodeOptions::new(wavemesh_codec::Quality::Lossless, None);
     let new = wavemesh_codec::encode(&old.raster, &options).unwrap();
     let redecoded = decode(&new.bytes, &DecodeOptions::default()).unwrap();
-    assert_eq!(redecoded.header.coder, Coder::V2);
+    assert_eq!(redecoded.header.coder, Coder::V3);
     assert_eq!(redecoded.raster, old.raster);
-    assert_ne!(new.bytes, file, "coder 2 makes other bytes");
+    assert_ne!(new.bytes, file, "coder 3 makes other bytes");
 }
 
 /// Tiled files written before tiles overlapped (commit 0603092: no overlap field, flag 9

@@ -29,8 +29,11 @@ mod flag {
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
-/// [`Coder::V2`] (a byte, not a `flags` bit, so that headers do not grow).
+/// coder 2's models (a byte, not a `flags` bit, so that headers do not grow).
 const CODER_2_BIT: u8 = 7;
+/// Bit of the levels byte that says coder 2's models start from the trained
+/// probabilities: [`Coder::V3`] (levels never need more than 6 bits).
+const PRIMED_BIT: u8 = 1 << 6;
 
 /// Georeferencing flag bits.
 const NORTH_UP: u8 = 1;
@@ -61,8 +64,13 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
         header.sample_type.code()
             | header.wavelet.code() << 3
             | header.mode.code() << 5
-            | u8::from(header.coder == Coder::V2) << CODER_2_BIT,
-        header.levels,
+            | u8::from(header.coder != Coder::V1) << CODER_2_BIT,
+        header.levels
+            | if header.coder == Coder::V3 {
+                PRIMED_BIT
+            } else {
+                0
+            },
     ]);
     write_number(&mut body, header.mapping.offset);
     // The sample step means something to 5/3 streams only, the coefficient step to 9/7.
@@ -223,12 +231,24 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
     let width = r.varint_u32("width")?;
     let height = r.varint_u32("height")?;
     let kinds = r.u8()?;
+    let levels_byte = r.u8()?;
+    let coder = read_coder(kinds, levels_byte)?;
     let mut codes = Reader {
-        data: &[kinds & 7, kinds >> 3 & 3, r.u8()?, kinds >> 5 & 3],
+        data: &[
+            kinds & 7,
+            kinds >> 3 & 3,
+            levels_byte & !PRIMED_BIT,
+            kinds >> 5 & 3,
+        ],
         pos: 0,
     };
     let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
     if flags & flag::TILED != 0 {
+        if coder == Coder::V3 {
+            return Err(CodecError::InvalidHeader(
+                "a tiled header with the primed-models bit".into(),
+            ));
+        }
         return parse_tiled(
             r,
             flags,
@@ -288,11 +308,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         nodata,
         valid_range: (min, max),
         top_plane,
-        coder: if kinds >> CODER_2_BIT != 0 {
-            Coder::V2
-        } else {
-            Coder::V1
-        },
+        coder,
         bands,
         payload_len,
         payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
@@ -340,6 +356,18 @@ fn read_gis(r: &mut Reader, flags: u64) -> Result<(Option<Georef>, Metadata), Co
         Metadata::default()
     };
     Ok((georef, metadata))
+}
+
+/// The coder the `kinds` and levels bytes name; the primed bit needs coder 2's.
+fn read_coder(kinds: u8, levels_byte: u8) -> Result<Coder, CodecError> {
+    match (kinds >> CODER_2_BIT != 0, levels_byte & PRIMED_BIT != 0) {
+        (false, false) => Ok(Coder::V1),
+        (true, false) => Ok(Coder::V2),
+        (true, true) => Ok(Coder::V3),
+        (false, true) => Err(CodecError::InvalidHeader(
+            "primed models without coder 2".into(),
+        )),
+    }
 }
 
 /// The fields of a tiled file's header after `levels` (see [`write_tiled`]).
@@ -717,5 +745,19 @@ impl Reader<'_> {
         let len = self.varint_count(1)?;
         String::from_utf8(self.bytes(len)?.to_vec())
             .map_err(|_| CodecError::InvalidHeader("header text is not UTF-8".into()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn primed_models_need_coder_2() {
+        let coder_2 = 1 << CODER_2_BIT;
+        assert_eq!(read_coder(0, 6).unwrap(), Coder::V1);
+        assert_eq!(read_coder(coder_2, 6).unwrap(), Coder::V2);
+        assert_eq!(read_coder(coder_2, PRIMED_BIT | 6).unwrap(), Coder::V3);
+        assert!(read_coder(0, PRIMED_BIT | 6).is_err());
     }
 }

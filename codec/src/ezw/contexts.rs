@@ -2,6 +2,7 @@
 //! what encoder and decoder both know at that moment of the scan (the flags, the known
 //! coefficient values, the parent).
 
+use super::priors::primed;
 use super::{FlagGrid, ParentRow, Side, SIG};
 use crate::entropy::BitModel;
 
@@ -45,10 +46,12 @@ impl ContextChoice {
 pub enum Coder {
     /// The first models: neighbour and parent *significance* only.
     V1,
-    /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent
-    /// (what every new stream is coded with).
-    #[default]
+    /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent.
     V2,
+    /// Coder 2's models, each starting from a trained probability instead of ½ (see
+    /// [`super::priors`]): what every new stream is coded with.
+    #[default]
+    V3,
 }
 
 /// The adaptive models, grouped by decision.
@@ -83,16 +86,26 @@ impl Contexts {
     pub fn new(coder: Coder, choice: ContextChoice) -> Self {
         let (activity, busy) = match coder {
             Coder::V1 => (3 * 2 * 2, 2),
-            Coder::V2 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
+            Coder::V2 | Coder::V3 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
         };
         Contexts {
             coder,
             choice,
-            significance: vec![BitModel::new(); 4 * activity],
-            zerotree: vec![BitModel::new(); 4 * activity],
-            sign: vec![BitModel::new(); 4 * 3 * 3 * 3],
-            refinement: vec![BitModel::new(); 2 * busy * 4],
+            significance: primed(coder, 0, 4 * activity),
+            zerotree: primed(coder, 1, 4 * activity),
+            sign: primed(coder, 2, 4 * 3 * 3 * 3),
+            refinement: primed(coder, 3, 2 * busy * 4),
         }
+    }
+
+    /// The four groups of models, in the order of the prior tables.
+    pub(super) fn groups(&self) -> [&[BitModel]; 4] {
+        [
+            &self.significance,
+            &self.zerotree,
+            &self.sign,
+            &self.refinement,
+        ]
     }
 }
 
@@ -122,7 +135,7 @@ pub(super) fn sign_context<S: Side>(
     let up = state(fi - s, i.wrapping_sub(w));
     match contexts.coder {
         Coder::V1 => (orientation * 3 + left * signs) * 3 + up * signs,
-        Coder::V2 => {
+        Coder::V2 | Coder::V3 => {
             let balance = |a: usize, b: usize| {
                 let v = SIGN_VALUE[a] + SIGN_VALUE[b];
                 (v.signum() + 1) as usize
@@ -198,7 +211,7 @@ pub(super) fn dominant_contexts<S: Side>(
                 (class * 3 + hv) * 2 + parent_sig,
             )
         }
-        Coder::V2 => {
+        Coder::V2 | Coder::V3 => {
             let activity = if choice.neighbours {
                 log_level(neighbour_sum(grid, side.known(), at) >> p, ACTIVITY_LEVELS)
             } else {
@@ -267,7 +280,7 @@ pub(super) fn refinement_context(
             ((hv + diag > 1) as usize, 2)
         }
         // Coder 2: the neighbours' known magnitudes at plane `p`.
-        Coder::V2 => {
+        Coder::V2 | Coder::V3 => {
             let level = match neighbour_sum(grid, known, at) >> p {
                 0 => 0,
                 1..16 => 1,
