@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use bitvec::prelude::*;
 use serde::Serialize;
-use wavemesh_codec::container::physical_offset;
+use wavemesh_codec::format::physical_offset;
 use wavemesh_codec::{decode, CodecError, DecodeOptions, Decoded, Encoded, Raster};
 
 use crate::memory;

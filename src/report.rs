@@ -315,7 +315,7 @@ pub fn measure(
         });
     }
 
-    let contexts = wavemesh_codec::pipeline::context_ablation(&raster)
+    let contexts = wavemesh_codec::research::context_ablation(&raster)
         .map_err(|e| codec_err(e.to_string()))?
         .into_iter()
         .map(|(name, bits)| (name.to_string(), bits))

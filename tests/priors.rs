@@ -8,8 +8,7 @@ mod support;
 use std::path::Path;
 
 use wavemesh::dem::{read_dem, ReadOptions};
-use wavemesh_codec::ezw::PriorTally;
-use wavemesh_codec::pipeline::tally_priors;
+use wavemesh_codec::research::{tally_priors, PriorTally};
 use wavemesh_codec::{Raster, Wavelet};
 
 /// The rasters the tables are trained on: the shared DEMs of the first training.

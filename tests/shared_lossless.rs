@@ -5,7 +5,7 @@ mod support;
 
 use wavemesh::dem::{read_dem, ReadOptions};
 use wavemesh::report::load_manifest;
-use wavemesh_codec::container::stored_georef;
+use wavemesh_codec::format::stored_georef;
 use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality};
 
 #[test]

@@ -6,8 +6,11 @@
 //! ([`v1`]) and 2; everything after the header is the same in both.
 
 mod number;
+mod sections;
 mod v1;
 mod v2;
+
+pub(crate) use sections::StreamSections;
 
 use crate::error::CodecError;
 use crate::ezw::{Coder, PassRecord, MAX_PLANE};
@@ -29,7 +32,7 @@ pub enum Mode {
     Lossy,
     /// Every valid sample within `max_error` of the original.
     MaxError,
-    /// Floats quantised to a user step (`--precision`): within `step / 2`.
+    /// Floats quantised to a user step ([`crate::Quality::Precision`]): within `step / 2`.
     Precision,
 }
 
@@ -317,7 +320,7 @@ impl Header {
 
     /// The header length a file's version and length field claim (unchecked), `None` if
     /// `data` does not start with the magic bytes and a readable length field.
-    pub fn declared_len(data: &[u8]) -> Option<usize> {
+    pub(crate) fn declared_len(data: &[u8]) -> Option<usize> {
         if data.get(..MAGIC.len())? != MAGIC {
             return None;
         }
@@ -330,7 +333,7 @@ impl Header {
     }
 
     /// The rate–distortion ladder section that trails the file.
-    pub fn ladder_bytes(&self) -> Vec<u8> {
+    pub(crate) fn ladder_bytes(&self) -> Vec<u8> {
         let mut out = vec![self.passes.len() as u8];
         let mut previous_end = 0;
         for pass in &self.passes {

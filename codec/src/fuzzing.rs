@@ -14,7 +14,10 @@
 //! | [`roundtrip`] | `roundtrip` | parameter bytes + a raster (≤ 64 × 64) |
 
 use crate::container::{self, Header, Mode, CHUNK};
-use crate::pipeline::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Limits, Quality};
+use crate::mask::valid_sample_count;
+use crate::pipeline::{
+    decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Limits, Quality,
+};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::tiles::{tile_lengths, TiledLayout};
 use crate::wavelet::{self, Wavelet};
@@ -232,20 +235,20 @@ fn inspect_tiled(layout: &TiledLayout) {
     }
 }
 
-/// The valid-sample count `info` takes from a single stream's nodata mask.
+/// The valid-sample count `info` takes from a single stream's nodata mask: refused
+/// over the limits, else at most the sample count.
 fn inspect_single(data: &[u8]) {
     let Ok((header, header_len)) = Header::parse(data) else {
         return;
     };
     let samples = header.sample_count();
-    if header.mask_len == 0 || samples > DECODE_FUZZ_LIMITS.max_samples {
-        return;
+    match valid_sample_count(data, &header, header_len, &DECODE_FUZZ_LIMITS) {
+        Ok(valid) => assert!(valid <= samples, "{valid} valid samples of {samples}"),
+        Err(e) => assert!(
+            samples > DECODE_FUZZ_LIMITS.max_samples || samples / 8 > DECODE_FUZZ_LIMITS.max_memory,
+            "{samples} samples refused: {e}"
+        ),
     }
-    let framed = data.get(header_len..).unwrap_or(&[]);
-    let mask = container::unframe(framed, header.mask_len as usize);
-    let (width, count) = (header.width as usize, samples as usize);
-    let valid = crate::mask::decode_mask(&mask.bytes, width, count).count_ones();
-    assert!(valid <= count, "{valid} valid samples of {count}");
 }
 
 /// Rewrites the CRC of every complete chunk of a framed section of `framed_total` bytes
@@ -292,22 +295,31 @@ pub fn decode_prefixes(data: &[u8]) {
     let Ok(encoded) = encode(&raster, &options) else {
         return;
     };
-    let bytes = &encoded.bytes;
-    let header = &encoded.header;
-    let header_len = encoded.header_len;
-    let mask_end = header_len + header.mask_len as usize;
-    let ladder_start = bytes.len() - header.ladder_len as usize;
-
     // The complete stream.
-    let full = decode(bytes, &fuzz_options()).expect("the complete stream decodes");
+    let full = decode(&encoded.bytes, &fuzz_options()).expect("the complete stream decodes");
     assert!(
         full.complete,
         "the complete stream is not reported complete"
     );
     assert!(full.damage.is_none(), "damage reported in a fresh stream");
     check_guarantee(&raster, &full, &options);
+    check_prefixes(&raster, &encoded, &options, &cuts);
+    check_flipped_bit(&raster, &encoded, flip);
+}
 
-    // Prefixes: fixed places and eight chosen by the input.
+/// The first byte after the header and the nodata mask, and the first of the ladder.
+fn section_ends(encoded: &Encoded) -> (usize, usize) {
+    let header = &encoded.header;
+    let mask_end = encoded.header_len + header.mask_len as usize;
+    (mask_end, encoded.bytes.len() - header.ladder_len as usize)
+}
+
+/// [`decode_prefixes`]' checks of prefixes: at fixed places and at the `cuts` the input
+/// chose.
+fn check_prefixes(raster: &Raster, encoded: &Encoded, options: &EncodeOptions, cuts: &[u16]) {
+    let bytes = &encoded.bytes;
+    let header_len = encoded.header_len;
+    let (mask_end, ladder_start) = section_ends(encoded);
     let len = bytes.len();
     let mut prefixes = vec![
         0,
@@ -337,35 +349,51 @@ pub fn decode_prefixes(data: &[u8]) {
         let decoded = result.unwrap_or_else(|e| {
             panic!("prefix of {cut} of {len} bytes (header + mask {mask_end}) fails: {e}")
         });
-        check_shape(&raster, &decoded);
-        check_voids(&raster, &decoded, cut);
-        if cut < ladder_start {
-            assert!(
-                !decoded.complete,
-                "prefix of {cut} bytes (sections end at {ladder_start}) reported complete"
-            );
-        }
-        if decoded.complete {
-            check_guarantee(&raster, &decoded, &options);
-        }
-        let limited = DecodeOptions {
-            max_bytes: Some(cut as u64),
-            ..fuzz_options()
-        };
-        let same = decode(bytes, &limited).expect("max_bytes decode of a decodable prefix");
+        check_prefix(raster, encoded, options, cut, &decoded);
+    }
+}
+
+/// The checks of one decodable prefix of `cut` bytes.
+fn check_prefix(
+    raster: &Raster,
+    encoded: &Encoded,
+    options: &EncodeOptions,
+    cut: usize,
+    decoded: &Decoded,
+) {
+    let (_, ladder_start) = section_ends(encoded);
+    check_shape(raster, decoded);
+    check_voids(raster, decoded, cut);
+    if cut < ladder_start {
         assert!(
-            same_samples(&same.raster.samples, &decoded.raster.samples),
-            "max_bytes = {cut} decodes differently from the {cut}-byte prefix"
+            !decoded.complete,
+            "prefix of {cut} bytes (sections end at {ladder_start}) reported complete"
         );
     }
+    if decoded.complete {
+        check_guarantee(raster, decoded, options);
+    }
+    let limited = DecodeOptions {
+        max_bytes: Some(cut as u64),
+        ..fuzz_options()
+    };
+    let same = decode(&encoded.bytes, &limited).expect("max_bytes decode of a decodable prefix");
+    assert!(
+        same_samples(&same.raster.samples, &decoded.raster.samples),
+        "max_bytes = {cut} decodes differently from the {cut}-byte prefix"
+    );
+}
 
-    // One flipped bit.
+/// [`decode_prefixes`]' check of one flipped bit, at `flip` modulo the file's bits.
+fn check_flipped_bit(raster: &Raster, encoded: &Encoded, flip: u16) {
+    let len = encoded.bytes.len();
+    let (mask_end, _) = section_ends(encoded);
     let at = usize::from(flip) % (len * 8);
-    let mut damaged = bytes.clone();
+    let mut damaged = encoded.bytes.clone();
     damaged[at / 8] ^= 1 << (at % 8);
     let result = decode(&damaged, &fuzz_options());
     if at / 8 < mask_end {
-        if at / 8 < header_len {
+        if at / 8 < encoded.header_len {
             assert!(
                 result.is_err(),
                 "bit {at} flipped in the header, decoded anyway"
@@ -383,8 +411,8 @@ pub fn decode_prefixes(data: &[u8]) {
         damage.offset,
         at / 8
     );
-    check_shape(&raster, &decoded);
-    check_voids(&raster, &decoded, at / 8);
+    check_shape(raster, &decoded);
+    check_voids(raster, &decoded, at / 8);
 }
 
 /// Encodes an arbitrary raster in an arbitrary mode and checks the decoded stream.
@@ -484,7 +512,6 @@ fn check_voids(original: &Raster, decoded: &Decoded, what: usize) {
 /// accuracy the requested quality and the header's mode promise.
 fn check_guarantee(original: &Raster, decoded: &Decoded, options: &EncodeOptions) {
     check_shape(original, decoded);
-    let header = &decoded.header;
     let r = &decoded.raster;
     // Nodata: as given, or NaN for float voids without one.
     let nodata_ok = match (original.nodata, r.nodata) {
@@ -498,7 +525,14 @@ fn check_guarantee(original: &Raster, decoded: &Decoded, options: &EncodeOptions
         original.nodata, r.nodata
     );
     check_voids(original, decoded, usize::MAX);
-    // What the request promises, whatever the encoder chose.
+    check_requested(original, decoded, options);
+    check_promised(original, decoded);
+}
+
+/// What the request in `options` promises, whatever the encoder chose.
+fn check_requested(original: &Raster, decoded: &Decoded, options: &EncodeOptions) {
+    let header = &decoded.header;
+    let r = &decoded.raster;
     let no_budget = options.budget_bytes.is_none();
     match options.quality {
         Quality::Lossless if no_budget && options.wavelet == Wavelet::Int53 => {
@@ -537,8 +571,12 @@ fn check_guarantee(original: &Raster, decoded: &Decoded, options: &EncodeOptions
         }
         _ => {}
     }
-    // What the stream's header promises.
-    match header.mode {
+}
+
+/// What the stream's header promises.
+fn check_promised(original: &Raster, decoded: &Decoded) {
+    let r = &decoded.raster;
+    match decoded.header.mode {
         Mode::Lossless => {
             for i in 0..original.len() {
                 if original.is_valid(i) {
@@ -554,7 +592,7 @@ fn check_guarantee(original: &Raster, decoded: &Decoded, options: &EncodeOptions
             }
         }
         Mode::MaxError | Mode::Precision => {
-            check_bound(original, r, header.max_error, "header max_error")
+            check_bound(original, r, decoded.header.max_error, "header max_error")
         }
         Mode::Lossy => {}
     }
@@ -671,7 +709,29 @@ fn arbitrary_raster(input: &mut Input, sample_bytes: &[u8], max_side: usize) -> 
     let style = input.u8();
     let nodata_choice = input.u8();
     let nodata_bits = input.u64();
-    let n = width * height;
+    let bits = arbitrary_bits(sample_type, style, width * height, sample_bytes);
+    let samples = match sample_type {
+        SampleType::U8 => Samples::U8(bits.iter().map(|&b| b as u8).collect()),
+        SampleType::U16 => Samples::U16(bits.iter().map(|&b| b as u16).collect()),
+        SampleType::I16 => Samples::I16(bits.iter().map(|&b| b as u16 as i16).collect()),
+        SampleType::I32 => Samples::I32(bits.iter().map(|&b| b as i32).collect()),
+        SampleType::F32 => Samples::F32(bits.iter().map(|&b| f32::from_bits(b)).collect()),
+    };
+    let mut raster = Raster::new(width, height, samples).expect("consistent raster");
+    raster.nodata = match nodata_choice % 6 {
+        0 => None,
+        1 => Some(f64::NAN),
+        2 => Some(raster.samples.get_f64(0)),
+        3 => Some(sample_type.value_range().0),
+        4 => Some(f64::from_bits(nodata_bits)),
+        _ => Some(f64::from(f32::from_bits(nodata_bits as u32))),
+    };
+    raster
+}
+
+/// The bit patterns of `n` samples of `sample_type` in one of four styles (see
+/// [`roundtrip`]: byte 3), from `sample_bytes` repeated as needed.
+fn arbitrary_bits(sample_type: SampleType, style: u8, n: usize, sample_bytes: &[u8]) -> Vec<u32> {
     let byte = |k: usize| -> u8 {
         if sample_bytes.is_empty() {
             0
@@ -687,7 +747,7 @@ fn arbitrary_raster(input: &mut Input, sample_bytes: &[u8], max_side: usize) -> 
             byte(4 * k + 3),
         ])
     };
-    let bits: Vec<u32> = match style % 4 {
+    match style % 4 {
         // Raw: each sample from the next bytes.
         0 => (0..n)
             .map(|k| match sample_type {
@@ -725,24 +785,7 @@ fn arbitrary_raster(input: &mut Input, sample_bytes: &[u8], max_side: usize) -> 
         _ => (0..n)
             .map(|k| SPECIAL[usize::from(byte(k)) % SPECIAL.len()])
             .collect(),
-    };
-    let samples = match sample_type {
-        SampleType::U8 => Samples::U8(bits.iter().map(|&b| b as u8).collect()),
-        SampleType::U16 => Samples::U16(bits.iter().map(|&b| b as u16).collect()),
-        SampleType::I16 => Samples::I16(bits.iter().map(|&b| b as u16 as i16).collect()),
-        SampleType::I32 => Samples::I32(bits.iter().map(|&b| b as i32).collect()),
-        SampleType::F32 => Samples::F32(bits.iter().map(|&b| f32::from_bits(b)).collect()),
-    };
-    let mut raster = Raster::new(width, height, samples).expect("consistent raster");
-    raster.nodata = match nodata_choice % 6 {
-        0 => None,
-        1 => Some(f64::NAN),
-        2 => Some(raster.samples.get_f64(0)),
-        3 => Some(sample_type.value_range().0),
-        4 => Some(f64::from_bits(nodata_bits)),
-        _ => Some(f64::from(f32::from_bits(nodata_bits as u32))),
-    };
-    raster
+    }
 }
 
 /// Encoder options from the input (see [`roundtrip`] for the layout); also says whether

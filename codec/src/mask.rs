@@ -7,7 +7,10 @@
 
 use bitvec::prelude::{BitSlice, BitVec, Lsb0};
 
+use crate::container::{unframe, Header};
 use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitModel, BitSink};
+use crate::error::CodecError;
+use crate::pipeline::Limits;
 
 /// A validity mask, one bit per sample (`true` = valid), as the decoder keeps it.
 pub type Mask = BitVec<u64, Lsb0>;
@@ -57,6 +60,39 @@ pub fn encode_mask(mask: &[bool], width: usize) -> Vec<u8> {
         encoder.encode(valid, &mut models[ctx]);
     }
     encoder.finish()
+}
+
+/// Valid samples of a single-stream file, `data` read from its start: all of them
+/// without a nodata mask, else those its mask marks valid (a damaged or missing mask
+/// decodes as far as it goes). The mask decodes to one bit a sample: a header claiming
+/// more samples than `limits` allow is refused first.
+pub fn valid_sample_count(
+    data: &[u8],
+    header: &Header,
+    header_len: usize,
+    limits: &Limits,
+) -> Result<u64, CodecError> {
+    let samples = header.sample_count();
+    if header.mask_len == 0 {
+        return Ok(samples);
+    }
+    let memory = samples / 8;
+    for (what, needed, limit) in [
+        ("sample count", samples, limits.max_samples),
+        ("nodata mask memory", memory, limits.max_memory),
+    ] {
+        if needed > limit {
+            return Err(CodecError::LimitExceeded {
+                what,
+                needed,
+                limit,
+            });
+        }
+    }
+    let framed = data.get(header_len..).unwrap_or(&[]);
+    let mask = unframe(framed, header.mask_len as usize);
+    let mask = decode_mask(&mask.bytes, header.width as usize, samples as usize);
+    Ok(mask.count_ones() as u64)
 }
 
 /// Decodes a mask of `count` samples written by [`encode_mask`].

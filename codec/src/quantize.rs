@@ -3,13 +3,13 @@
 //! Every stream stores its samples as integers `q` with `value = offset + step · q`
 //! (computed in `f64`, then narrowed to the sample type):
 //! - integer sources, lossless: `offset = min`, `step = 1`;
-//! - integer sources, `--max-error E`: `step = 2⌊E⌋ + 1`, `q = ⌊(v − min + ⌊E⌋) / step⌋`,
+//! - integer sources, `Quality::MaxError(E)`: `step = 2⌊E⌋ + 1`, `q = ⌊(v − min + ⌊E⌋) / step⌋`,
 //!   which keeps every sample within `⌊E⌋` (the near-lossless quantiser of JPEG-LS);
 //! - float sources whose values all lie exactly on a decimal or binary grid (Terrain-RGB's
 //!   0.1 m, for instance): `offset = 0`, `step` = that grid, lossless;
 //! - other float sources, lossless: a grid `step` close to the data's precision plus an
 //!   exact per-sample residual on the `f32` bit patterns (see [`crate::residual`]);
-//! - float sources with `--max-error E` or `--precision STEP`: `step = 2E` (or STEP),
+//! - float sources with `Quality::MaxError(E)` or `Quality::Precision(STEP)`: `step = 2E` (or STEP),
 //!   `q = round(v / step)`, checked sample by sample.
 //!
 //! Nodata samples are filled before the transform with a smooth continuation of their
@@ -17,6 +17,14 @@
 
 use crate::error::CodecError;
 use crate::raster::Raster;
+
+mod prepare;
+mod samples;
+mod voids;
+
+pub(crate) use prepare::{prepare_53, prepare_97, Prepared};
+pub(crate) use samples::{rescale_97, to_samples};
+pub(crate) use voids::fill_voids;
 
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
 pub const MAX_INTEGER_MAGNITUDE: f64 = (1u64 << 26) as f64;
@@ -220,97 +228,6 @@ pub fn default_float_step(min: f64, max: f64) -> f64 {
         step *= 2.0;
     }
     step
-}
-
-/// Fills the samples where `mask` is false with a smooth continuation of the valid ones:
-/// a push–pull pyramid (averages of valid samples, coarse to fine) followed by a few
-/// relaxation sweeps, so filled voids cost almost no bits after the transform.
-pub fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]) {
-    if mask.iter().all(|&m| m) {
-        return;
-    }
-    if !mask.iter().any(|&m| m) {
-        values.iter_mut().for_each(|v| *v = 0.0);
-        return;
-    }
-    // Push: pyramid of (sum, weight).
-    let mut levels: Vec<(usize, usize, Vec<f64>, Vec<f64>)> = Vec::new();
-    let sums: Vec<f64> = values
-        .iter()
-        .zip(mask)
-        .map(|(&v, &m)| if m { v } else { 0.0 })
-        .collect();
-    let weights: Vec<f64> = mask.iter().map(|&m| m as u8 as f64).collect();
-    levels.push((width, height, sums, weights));
-    while {
-        let (w, h, _, _) = levels.last().expect("pyramid has a level");
-        *w > 1 || *h > 1
-    } {
-        let (w, h, s, wt) = levels.last().expect("pyramid has a level");
-        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
-        let mut ns = vec![0.0; nw * nh];
-        let mut nwt = vec![0.0; nw * nh];
-        for y in 0..*h {
-            for x in 0..*w {
-                let j = (y / 2) * nw + x / 2;
-                ns[j] += s[y * w + x];
-                nwt[j] += wt[y * w + x];
-            }
-        }
-        levels.push((nw, nh, ns, nwt));
-    }
-    // Pull: each level's empty cells take their parent's average.
-    let mut parent: Option<(usize, Vec<f64>)> = None;
-    for (w, h, s, wt) in levels.into_iter().rev() {
-        let mut avg = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                avg[i] = if wt[i] > 0.0 {
-                    s[i] / wt[i]
-                } else if let Some((pw, ref pa)) = parent {
-                    pa[(y / 2) * pw + x / 2]
-                } else {
-                    0.0
-                };
-            }
-        }
-        parent = Some((w, avg));
-    }
-    let (_, filled) = parent.expect("pyramid has a level");
-    for i in 0..values.len() {
-        if !mask[i] {
-            values[i] = filled[i];
-        }
-    }
-    // Relax: Gauss–Seidel sweeps of the Laplace equation over the void samples.
-    let voids: Vec<usize> = (0..values.len()).filter(|&i| !mask[i]).collect();
-    for _ in 0..8 {
-        for &i in &voids {
-            let (x, y) = (i % width, i / width);
-            let mut sum = 0.0;
-            let mut count = 0.0;
-            if x > 0 {
-                sum += values[i - 1];
-                count += 1.0;
-            }
-            if x + 1 < width {
-                sum += values[i + 1];
-                count += 1.0;
-            }
-            if y > 0 {
-                sum += values[i - width];
-                count += 1.0;
-            }
-            if y + 1 < height {
-                sum += values[i + width];
-                count += 1.0;
-            }
-            if count > 0.0 {
-                values[i] = sum / count;
-            }
-        }
-    }
 }
 
 #[cfg(test)]

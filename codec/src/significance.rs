@@ -11,7 +11,7 @@
 //! coefficient (a clipped cell at the far edge) has no coefficient of its own.
 //!
 //! For every node the map stores two pass indices, as the global bit-plane `n` of the pass
-//! ([`crate::ezw`]) plus one (0: never significant in what was decoded):
+//! (of the zerotree coder) plus one (0: never significant in what was decoded):
 //! - [`SignificanceMap::own_plane`]: the pass at which one of the node's own three
 //!   coefficients became significant;
 //! - [`SignificanceMap::subtree_plane`]: the same over the node and all its descendants, the

@@ -227,7 +227,7 @@ fn garbage_and_damage_give_errors_or_images_never_panics() {
             })
             .collect();
         if n % 2 == 0 && len >= 8 {
-            bytes[..8].copy_from_slice(&wavemesh_codec::container::MAGIC);
+            bytes[..8].copy_from_slice(&wavemesh_codec::format::MAGIC);
         }
         // A forged header would need a matching CRC-32: random bytes never decode.
         assert!(decode(&bytes, &DecodeOptions::default()).is_err());

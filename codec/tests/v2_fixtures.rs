@@ -6,7 +6,7 @@
 //! little-endian (f32 as their bits); `NAME.prefixN.decoded` is the decode of its first
 //! N bytes. The files are 32 × 24 synthetic terrain (a sine relief with noise).
 
-use wavemesh_codec::ezw::Coder;
+use wavemesh_codec::format::Coder;
 use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
 
 mod support;

@@ -7,8 +7,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use wavemesh::dem::{read_dem, ReadOptions, WorkMemory};
-use wavemesh_codec::container::{physical_offset, unframe};
-use wavemesh_codec::mask::decode_mask;
+use wavemesh_codec::format::{physical_offset, valid_sample_count};
 use wavemesh_codec::{
     decode_window, encode as encode_raster,
     tiles::{TiledLayout, DEFAULT_TILE},
@@ -313,18 +312,6 @@ pub fn decode<'py>(
     Ok((samples, valid, nodata, damage))
 }
 
-/// The valid samples of a stream with `header` (parsed from `data`, `header_len` bytes):
-/// counting them decodes the nodata mask.
-fn valid_samples(data: &[u8], header: &Header, header_len: usize) -> usize {
-    let (width, height) = (header.width as usize, header.height as usize);
-    if header.mask_len == 0 {
-        return width * height;
-    }
-    let framed = data.get(header_len..).unwrap_or(&[]);
-    let mask = unframe(framed, header.mask_len as usize);
-    decode_mask(&mask.bytes, width, width * height).count_ones()
-}
-
 /// The pass ladder: per pass its plane, the file byte where it ends, bits per sample
 /// there and the encoder's estimate of the RMSE and PSNR of a decode that stops there.
 fn pass_ladder<'py>(
@@ -368,7 +355,9 @@ pub fn info<'py>(
             limits.max_samples, limits.max_memory
         )));
     }
-    let valid = py.detach(|| valid_samples(data, &header, header_len));
+    let valid = py
+        .detach(|| valid_sample_count(data, &header, header_len, &limits))
+        .map_err(codec_error)? as usize;
     let payload_start = (header_len + header.mask_len as usize) as u64;
     let expected = payload_start + header.payload_len + u64::from(header.residual_len);
     let out = PyDict::new(py);

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 use wavemesh::byte_source::FileSource;
 use wavemesh::metrics::{self, Distortion};
-use wavemesh_codec::container::physical_offset;
+use wavemesh_codec::format::{physical_offset, valid_sample_count};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::TileGrid;
 use wavemesh_codec::{
@@ -578,7 +578,7 @@ pub(super) struct DecodeOutcome {
     pub(super) passes_decoded: u32,
     pub(super) complete: bool,
     pub(super) bytes_used: u64,
-    pub(super) damage: Option<wavemesh_codec::pipeline::Damage>,
+    pub(super) damage: Option<wavemesh_codec::Damage>,
 }
 
 impl DecodeOutcome {
@@ -847,13 +847,8 @@ pub fn info(args: &InfoArgs) -> Result<(), CliError> {
     args.limit_args
         .check("the header's raster", samples, mask_bytes)
         .map_err(|e| CliError::Input(args.input.clone(), e.to_string()))?;
-    let valid = if header.mask_len > 0 {
-        let framed = data.get(header_len..).unwrap_or(&[]);
-        let mask = wavemesh_codec::container::unframe(framed, header.mask_len as usize);
-        wavemesh_codec::mask::decode_mask(&mask.bytes, w, w * h).count_ones()
-    } else {
-        w * h
-    } as f64;
+    let valid = valid_sample_count(&data, &header, header_len, &args.limit_args.limits())
+        .map_err(|e| CliError::Stream(args.input.clone(), e))? as f64;
     let range = header.valid_range.1 - header.valid_range.0;
     let passes = header
         .passes

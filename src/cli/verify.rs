@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use wavemesh_codec::container::verify as verify_file;
+use wavemesh_codec::format::verify as verify_file;
 
 use super::coding::SCHEMA_VERSION;
 use super::{print_json, CliError};

@@ -31,7 +31,7 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-use wavemesh_codec::{Raster, SampleType, Samples};
+use wavemesh_codec::{Limits, Raster, SampleType, Samples};
 
 use crate::atomic::write_atomic;
 
@@ -194,8 +194,8 @@ impl Default for ReadOptions {
     fn default() -> ReadOptions {
         ReadOptions {
             terrain_rgb: false,
-            max_samples: 1 << 31,
-            max_memory: 2 << 30,
+            max_samples: Limits::DEFAULT.max_samples,
+            max_memory: Limits::DEFAULT.max_memory,
             work: WorkMemory::default(),
             accept_lossy: false,
         }

@@ -40,7 +40,7 @@ impl TileEntry {
 /// initial error (u16, the ladder's log scale), a varint pass count, then per pass the
 /// varint growth of its end over the previous one (the first over `head_len`) and its
 /// error (u16).
-pub fn write_index(entries: &[TileEntry]) -> Vec<u8> {
+pub(crate) fn write_index(entries: &[TileEntry]) -> Vec<u8> {
     let mut out = Vec::with_capacity(entries.len() * 64);
     for entry in entries {
         write_varint(&mut out, entry.len);
@@ -58,7 +58,7 @@ pub fn write_index(entries: &[TileEntry]) -> Vec<u8> {
 }
 
 /// Parses an index of `count` entries; every offset must lie inside its tile.
-pub fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, CodecError> {
+pub(crate) fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, CodecError> {
     let bad = |what: &str| CodecError::InvalidHeader(format!("tile index: {what}"));
     let mut r = Reader {
         data: bytes,

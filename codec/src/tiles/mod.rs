@@ -15,7 +15,8 @@ use std::io;
 
 pub use allocate::allocate;
 pub use index::{read_header, TileEntry, TiledLayout};
-pub use stream::{cut_tile, encode_tile, EncodedTile, TileSummary};
+pub(crate) use stream::cut_tile;
+pub use stream::{encode_tile, EncodedTile, TileSummary};
 
 use crate::container::{frame, Header, Mode, Tiling};
 use crate::error::CodecError;
@@ -392,7 +393,7 @@ pub fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64>
 
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
 /// allocation would read to the end are first coded again by `recode(k, cap)`, as
-/// [`starved_tiles`] says, until the budget, not a cap, ends every tile (at most six
+/// `starved_tiles` says, until the budget, not a cap, ends every tile (at most six
 /// rounds). The index shrinks with the cut (fewer passes to list), so the header and
 /// index are first counted without passes, then the excess of each try, if any, is
 /// taken off the tiles' share.
@@ -419,7 +420,7 @@ pub fn cut_to_budget<E: From<CodecError>>(
 /// cap cut their stream and that the allocation of `budget` reads through their last
 /// complete pass — it knows nothing of them beyond the cap, so it may be starving them.
 /// Empty when no cap binds.
-pub fn starved_tiles(
+pub(crate) fn starved_tiles(
     tiles: &[EncodedTile],
     info: &RasterInfo,
     grid: &TileGrid,
@@ -494,7 +495,7 @@ fn cut_recoded(
 /// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
 /// it needs: the header and index, then for each tile the window touches the prefix
 /// [`allocate`] gives it under `options.max_bytes` (all of it without a budget).
-pub fn decode_layout(
+pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
     window: Option<Window>,

@@ -1,0 +1,317 @@
+//! `.ezw` bytes → raster: a single stream decoded from any prefix, a tiled file by
+//! the tiles it needs, a window cut out of either.
+
+use crate::container::{physical_offset, Header, StreamSections, CHUNK};
+use crate::corrections::apply_corrections;
+use crate::entropy::ArithmeticDecoder;
+use crate::error::CodecError;
+use crate::ezw::{CoefficientLayout, Decoder};
+use crate::mask::Mask;
+use crate::progress::{self, Stage};
+use crate::quantize::{rescale_97, to_samples};
+use crate::raster::{Raster, Samples};
+use crate::residual::decode_residuals;
+use crate::significance::SignificanceMap;
+use crate::tiles::{ByteSource, TiledLayout, Window};
+use crate::wavelet::{self, Wavelet};
+use bitvec::order::Lsb0;
+use bitvec::slice::BitSlice;
+
+use super::options::{DecodeOptions, Limits};
+
+/// A decoded stream.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub struct Decoded {
+    /// The reconstructed raster, with the source's type, nodata and georeferencing.
+    pub raster: Raster,
+    /// The file's header.
+    pub header: Header,
+    /// Passes decoded completely.
+    pub passes_decoded: u32,
+    /// Whether every bit of the stream was decoded (the mode's guarantee holds).
+    pub complete: bool,
+    /// File bytes the decode used.
+    pub bytes_used: u64,
+    /// Where the file is damaged, if it is (the decode used only what precedes it).
+    pub damage: Option<Damage>,
+    /// The decoder's per-node significance map, when [`DecodeOptions::significance_map`]
+    /// asked for it.
+    pub significance: Option<SignificanceMap>,
+}
+
+/// The first damaged place of a file: a chunk whose checksum fails, or trailing garbage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct Damage {
+    /// Which section: "payload", "residual section", "ladder" or "trailing bytes".
+    pub section: &'static str,
+    /// File offset where the damage starts.
+    pub offset: u64,
+    /// The damaged tile of a tiled file, by index (row-major).
+    pub tile: Option<u32>,
+}
+
+/// Decodes `window` of a `.ezw` file (all of it when `None`) read from `source`, fetching
+/// only the bytes needed: of a tiled file the header, the index and the tiles the window
+/// touches (each cut as [`decode`] cuts it under `options.max_bytes`); of a single stream
+/// the whole file (or its `max_bytes` prefix), decoded and cropped.
+pub fn decode_window(
+    source: &mut impl ByteSource,
+    window: Option<Window>,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
+        return crate::tiles::decode_layout(source, &layout, window, options);
+    }
+    let data = source
+        .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
+        .map_err(|e| CodecError::Read(e.to_string()))?;
+    let mut decoded = decode(&data, options)?;
+    if let Some(w) = window {
+        decoded.raster = crop_to_window(&decoded.raster, w)?;
+    }
+    Ok(decoded)
+}
+
+/// The part of `raster` inside `window`, with its metadata and a georeferencing moved to
+/// the window's corner.
+fn crop_to_window(raster: &Raster, w: Window) -> Result<Raster, CodecError> {
+    let whole = Window {
+        x: 0,
+        y: 0,
+        width: raster.width,
+        height: raster.height,
+    };
+    if w.intersection(&whole) != Some(w) {
+        return Err(CodecError::InvalidParameters(format!(
+            "window {}x{} at ({}, {}) is not inside the {}x{} raster",
+            w.width, w.height, w.x, w.y, whole.width, whole.height
+        )));
+    }
+    let mut part = raster.crop(w.x, w.y, w.width, w.height);
+    part.metadata = raster.metadata.clone();
+    part.georef = raster.georef.clone().map(|mut georef| {
+        let gt = &mut georef.geotransform;
+        gt[0] += w.x as f64 * gt[1] + w.y as f64 * gt[2];
+        gt[3] += w.x as f64 * gt[4] + w.y as f64 * gt[5];
+        georef
+    });
+    Ok(part)
+}
+
+/// Largest tile index a decode reads: a quarter of its memory limit.
+fn index_limit(options: &DecodeOptions) -> u64 {
+    options.limits.max_memory / 4
+}
+
+/// Working memory a decode needs, in bytes (used for the limit check).
+fn decode_memory(header: &Header) -> u64 {
+    let n = header.sample_count();
+    // coefficients (4, reused for the output) + flags (1) + mask (1 when present).
+    n * (5 + (header.mask_len > 0) as u64)
+}
+
+/// Refuses a stream whose size or decoder memory exceeds `limits`.
+fn check_limits(header: &Header, limits: &Limits) -> Result<(), CodecError> {
+    let n = header.sample_count();
+    if n > limits.max_samples {
+        return Err(CodecError::LimitExceeded {
+            what: "sample count",
+            needed: n,
+            limit: limits.max_samples,
+        });
+    }
+    let memory = decode_memory(header);
+    if memory > limits.max_memory {
+        return Err(CodecError::LimitExceeded {
+            what: "decoder memory",
+            needed: memory,
+            limit: limits.max_memory,
+        });
+    }
+    Ok(())
+}
+
+/// Decodes a `.ezw` file, or as much of it as `options.max_bytes` (or the data) holds:
+/// a prefix of a single stream, or of a tiled file the prefix of each tile that
+/// [`crate::tiles::allocate`] gives it under that budget.
+pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
+    if let Some(layout) = TiledLayout::read(&mut data, index_limit(options))? {
+        if options.significance_map {
+            return Err(CodecError::InvalidParameters(
+                "significance maps come from single-stream files, not tiled ones".into(),
+            ));
+        }
+        return crate::tiles::decode_layout(&mut data, &layout, None, options);
+    }
+    let data = match options.max_bytes {
+        Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],
+        _ => data,
+    };
+    let (header, header_len) = Header::parse(data)?;
+    check_limits(&header, &options.limits)?;
+    let sections = StreamSections::read(data, &header, header_len, options.max_bytes)?;
+    if let (true, Some(d)) = (options.strict, sections.damage) {
+        return Err(CodecError::Damaged {
+            section: d.section,
+            offset: d.offset,
+        });
+    }
+    decode_stream(data, header, &sections, options)
+}
+
+/// Decodes the payload of a stream whose sections are read, then applies its residual
+/// section when that is complete.
+fn decode_stream(
+    data: &[u8],
+    header: Header,
+    sections: &StreamSections,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    // All of the payload the encoder wrote is here, undamaged...
+    let payload_present = sections.payload_check.complete;
+    // ... and it is a whole stream, not a prefix: its padding is genuine.
+    let payload_complete = payload_present && !header.payload_truncated;
+    let (decoder, significance) = run_zerotree(&header, sections, payload_complete, options);
+    let passes_decoded = decoder.passes_completed;
+    let ezw_complete = decoder.complete && payload_complete;
+    let mask = sections.mask.as_ref().map(Mask::as_bitslice);
+    let mut samples = reconstruct(&header, decoder, mask);
+    progress::report(Stage::Transform, 1, 1);
+    let residuals_complete =
+        apply_residual_section(&header, sections, &mut samples, mask, ezw_complete);
+    let mut raster = Raster::new(header.width as usize, header.height as usize, samples)?;
+    raster.nodata = header.nodata;
+    raster.georef = header.georef.clone();
+    raster.metadata = header.metadata.clone();
+    let bytes_used = (if residuals_complete && header.residual_len > 0 {
+        sections.ladder_start
+    } else {
+        let payload_end = physical_offset(sections.payload_check.data_len as u64);
+        sections.payload_start + payload_end as usize
+    })
+    .min(data.len()) as u64;
+    Ok(Decoded {
+        raster,
+        passes_decoded,
+        complete: payload_present
+            && (ezw_complete || header.payload_truncated)
+            && residuals_complete,
+        damage: sections.damage,
+        bytes_used,
+        header,
+        significance,
+    })
+}
+
+/// Runs the zerotree decoder over the payload (as far as `options` let it), and takes
+/// the significance map from it when `options` ask for one.
+fn run_zerotree(
+    header: &Header,
+    sections: &StreamSections,
+    payload_complete: bool,
+    options: &DecodeOptions,
+) -> (Decoder, Option<SignificanceMap>) {
+    let (width, height) = (header.width as usize, header.height as usize);
+    let subbands = wavelet::subbands(width, height, header.levels as u32);
+    let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
+    let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
+    let source = ArithmeticDecoder::new_framed(
+        sections.payload_framed,
+        sections.payload_check.data_len,
+        CHUNK,
+        4,
+        payload_complete,
+    );
+    let decoder = Decoder::run_from(
+        &layout,
+        header.coder,
+        source,
+        header.top_plane.map(u32::from),
+        options.max_passes,
+    );
+    let significance = options
+        .significance_map
+        .then(|| decoder.significance(&layout));
+    (decoder, significance)
+}
+
+/// The decoded coefficients through the inverse transform to samples. In place: the
+/// coefficient buffer becomes the image, then the samples, so the decode holds at most
+/// the coefficients (4 bytes a sample) and the output.
+fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Lsb0>>) -> Samples {
+    let (width, height) = (header.width as usize, header.height as usize);
+    let levels = header.levels as u32;
+    let mapping = header.mapping;
+    match header.wavelet {
+        Wavelet::Int53 => {
+            let mut coefficients = decoder.integer_coefficients();
+            wavelet::inverse_53(&mut coefficients, width, height, levels);
+            to_samples(
+                header.sample_type,
+                coefficients,
+                |q| mapping.value(q as f64),
+                mask,
+                header.nodata,
+            )
+        }
+        Wavelet::Cdf97 => {
+            let mut data = decoder.into_real_coefficients();
+            let subbands = wavelet::subbands(width, height, levels);
+            rescale_97(
+                &mut data,
+                width,
+                &subbands,
+                &header.bands,
+                header.coefficient_step,
+            );
+            wavelet::inverse_97(&mut data, width, height, levels);
+            to_samples(
+                header.sample_type,
+                data,
+                |x| mapping.value(x as f64),
+                mask,
+                header.nodata,
+            )
+        }
+    }
+}
+
+/// Applies the residual section: exact float residuals once the whole stream is decoded
+/// (`ezw_complete`), or max-error corrections once the whole (cut) payload is. Returns
+/// whether the section is complete and applied (true when there is none).
+fn apply_residual_section(
+    header: &Header,
+    sections: &StreamSections,
+    samples: &mut Samples,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+    ezw_complete: bool,
+) -> bool {
+    let residual = &sections.residual;
+    let bytes = residual.complete.then_some(&residual.bytes[..]);
+    let n = header.sample_count() as usize;
+    let valid_count = || mask.map_or(n, |m| m.count_ones());
+    match bytes {
+        _ if header.residual_len == 0 => true,
+        Some(bytes) if header.correction_step > 0.0 && sections.payload_check.complete => {
+            let mut corrections = decode_residuals(bytes, valid_count()).into_iter();
+            apply_corrections(samples, mask, header.correction_step, &mut corrections);
+            true
+        }
+        Some(bytes) if ezw_complete => match samples {
+            Samples::F32(floats) => {
+                let mut residuals = decode_residuals(bytes, valid_count()).into_iter();
+                for (i, value) in floats.iter_mut().enumerate() {
+                    if mask.is_none_or(|m| m[i]) {
+                        let r = residuals.next().unwrap_or(0);
+                        *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
+                    }
+                }
+                true
+            }
+            _ => false,
+        },
+        _ => false,
+    }
+}

@@ -1,0 +1,260 @@
+//! A raster made ready for the zerotree coder: quantised (5/3: to the integer plane;
+//! 9/7: the transform's coefficients on one step), transformed, with the per-subband
+//! shifts, scales and weights the coder and the header need.
+
+use crate::container::{scale_from_u16, scale_to_u16, Mode};
+use crate::error::CodecError;
+use crate::ezw::{Midpoint, MAX_COEFFICIENT_PLANE};
+use crate::pipeline::Quality;
+use crate::raster::{Raster, Samples};
+use crate::wavelet::{self, Subband};
+
+use super::{
+    default_float_step, detect_float_grid, fill_voids, float_plane, integer_plane, valid_range,
+    IntegerPlane, ValueMapping,
+};
+
+/// Coefficients and parameters ready for the EZW coder.
+pub(crate) struct Prepared {
+    /// The quantised transform coefficients, raster layout.
+    pub coefficients: Vec<i32>,
+    /// Per subband: whole planes its coefficients are shifted up by (5/3).
+    pub shifts: Vec<u32>,
+    /// Per subband: the factor its coefficients were multiplied by (9/7).
+    pub scales: Vec<f64>,
+    /// Per subband: squared pixel error of a unit coefficient error.
+    pub distortion_weights: Vec<f64>,
+    /// Where the decoder reconstructs inside a known interval.
+    pub midpoint: Midpoint,
+    /// How coded values map back to samples.
+    pub mapping: ValueMapping,
+    /// What the complete stream guarantees.
+    pub mode: Mode,
+    /// The bound the complete stream keeps every sample within.
+    pub max_error: f64,
+    /// The 9/7 quantiser step (1 for 5/3).
+    pub coefficient_step: f64,
+    /// Exact float residuals (lossless floats off any grid), else empty.
+    pub residuals: Vec<i32>,
+}
+
+/// The 5/3 path: samples to the integer plane `quality` asks for, voids filled,
+/// transformed.
+pub(crate) fn prepare_53(
+    raster: &Raster,
+    mask: &[bool],
+    quality: Quality,
+    norms: &[f64],
+) -> Result<Prepared, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let (plane, mode, max_error) = integer_plane_for(raster, mask, quality)?;
+    let IntegerPlane {
+        mut values,
+        mapping,
+        residuals,
+    } = plane;
+    if mask.iter().any(|&m| !m) {
+        let mut filled: Vec<f64> = values.iter().map(|&v| v as f64).collect();
+        fill_voids(&mut filled, width, height, mask);
+        for (v, f) in values.iter_mut().zip(filled) {
+            *v = f.round() as i32;
+        }
+    }
+    let levels = level_count(norms.len());
+    wavelet::forward_53(&mut values, width, height, levels);
+    // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
+    let shifts = wavelet::plane_shifts(norms);
+    let step2 = mapping.step * mapping.step;
+    Ok(Prepared {
+        coefficients: values,
+        scales: vec![1.0; norms.len()],
+        distortion_weights: norms.iter().map(|n| n * n * step2).collect(),
+        shifts,
+        midpoint: Midpoint::Integer,
+        mapping,
+        mode,
+        max_error,
+        coefficient_step: 1.0,
+        residuals,
+    })
+}
+
+/// The integer plane of `raster` for `quality`, with the mode and error bound of the
+/// stream that codes it exactly.
+fn integer_plane_for(
+    raster: &Raster,
+    mask: &[bool],
+    quality: Quality,
+) -> Result<(IntegerPlane, Mode, f64), CodecError> {
+    Ok(match (&raster.samples, quality) {
+        (Samples::F32(values), Quality::Lossless) => {
+            let step = detect_float_grid(values, mask);
+            let on_grid = step.is_some();
+            let step = step.unwrap_or_else(|| {
+                let (lo, hi) = valid_range(raster, mask).unwrap_or((0.0, 0.0));
+                default_float_step(lo, hi)
+            });
+            let plane = float_plane(values, mask, step, !on_grid, 0.0)?;
+            (plane, Mode::Lossless, 0.0)
+        }
+        (Samples::F32(values), Quality::MaxError(e)) => {
+            check_positive(e, "the max error")?;
+            (bounded_float_plane(values, mask, e)?, Mode::MaxError, e)
+        }
+        (Samples::F32(values), Quality::Precision(step)) => {
+            check_positive(step, "the precision")?;
+            // The grid's half step, plus the rounding of the reconstruction to f32.
+            let largest = values
+                .iter()
+                .zip(mask)
+                .filter(|(_, &m)| m)
+                .map(|(v, _)| v.abs() as f64)
+                .fold(0.0, f64::max);
+            let bound = step / 2.0 + largest * f32::EPSILON as f64;
+            let plane = float_plane(values, mask, step, false, bound)?;
+            (plane, Mode::Precision, bound)
+        }
+        (_, Quality::Lossless) => (integer_plane(raster, mask, 0.0)?, Mode::Lossless, 0.0),
+        (_, Quality::MaxError(e)) => {
+            check_positive(e, "the max error")?;
+            let plane = integer_plane(raster, mask, e)?;
+            let mode = if e >= 1.0 { Mode::MaxError } else { Mode::Lossless };
+            (plane, mode, e.floor())
+        }
+        (_, Quality::Precision(_)) => {
+            return Err(CodecError::InvalidParameters(
+                "a precision applies to float rasters; integer rasters are coded exactly or with a max error".into(),
+            ))
+        }
+    })
+}
+
+/// The 9/7 path: samples centred on their mean, voids filled, transformed, and the
+/// coefficients scaled by their subband's norm and quantised on one step.
+pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
+    let (width, height) = (raster.width, raster.height);
+    let (mean, mut data) = centred_samples(raster, mask);
+    let levels = level_count(norms.len());
+    wavelet::forward_97(&mut data, width, height, levels);
+    // Scale every subband by its norm so one quantiser step means the same pixel error
+    // everywhere, then quantise finely enough that the cut, not the quantiser, limits
+    // the quality: the largest scaled coefficient gets 30 bits.
+    let subbands = wavelet::subbands(width, height, levels);
+    // The header stores the scales in 1/8192 units: quantise with exactly those values.
+    let norms: Vec<f64> = norms
+        .iter()
+        .map(|&n| scale_from_u16(scale_to_u16(n)))
+        .collect();
+    let step = coefficient_step(&data, width, &subbands, &norms);
+    let mut coefficients = vec![0i32; data.len()];
+    for (sub, &norm) in subbands.iter().zip(&norms) {
+        let scale = norm / step;
+        for y in 0..sub.height {
+            let row = (sub.y0 + y) * width + sub.x0;
+            for x in row..row + sub.width {
+                let q = (data[x] as f64 * scale).abs().floor() as i32;
+                coefficients[x] = if data[x] < 0.0 { -q } else { q };
+            }
+        }
+    }
+    Prepared {
+        coefficients,
+        shifts: vec![0; norms.len()],
+        distortion_weights: vec![step * step; norms.len()],
+        scales: norms,
+        midpoint: Midpoint::Real,
+        mapping: ValueMapping {
+            offset: mean,
+            step: 1.0,
+        },
+        mode: Mode::Lossy,
+        max_error: f64::INFINITY,
+        coefficient_step: step,
+        residuals: Vec::new(),
+    }
+}
+
+/// The mean of the valid samples (a whole number for integers, an f32 for floats: any
+/// offset works, these are shorter to store) and the samples less it as f32, voids
+/// filled.
+fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
+    let valid = mask.iter().filter(|&&m| m).count().max(1);
+    let mean = (0..raster.len())
+        .filter(|&i| mask[i])
+        .map(|i| raster.samples.get_f64(i))
+        .sum::<f64>()
+        / valid as f64;
+    let mean = if raster.sample_type().is_integer() {
+        mean.round()
+    } else {
+        f64::from(mean as f32)
+    };
+    let mut centred: Vec<f64> = (0..raster.len())
+        .map(|i| {
+            if mask[i] {
+                raster.samples.get_f64(i) - mean
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    fill_voids(&mut centred, raster.width, raster.height, mask);
+    (mean, centred.iter().map(|&v| v as f32).collect())
+}
+
+/// The 9/7 quantiser step: the largest norm-scaled coefficient over 2^30, rounded up to
+/// an f32 (which the header stores in 4 bytes instead of 8); 1 when every coefficient
+/// is zero.
+fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f64]) -> f64 {
+    let mut largest = 0f64;
+    for (sub, &norm) in subbands.iter().zip(norms) {
+        for y in 0..sub.height {
+            let row = (sub.y0 + y) * width + sub.x0;
+            for &c in &data[row..row + sub.width] {
+                largest = largest.max((c as f64 * norm).abs());
+            }
+        }
+    }
+    if largest > 0.0 {
+        let step = largest / (1u64 << MAX_COEFFICIENT_PLANE) as f64 * 1.0001;
+        let rounded = f64::from(step as f32);
+        if rounded >= step {
+            rounded
+        } else {
+            f64::from(f32::from_bits((step as f32).to_bits() + 1))
+        }
+    } else {
+        1.0
+    }
+}
+
+/// Quantises floats so every sample stays within `e` after rounding back to f32: the grid
+/// step starts just under `2e` and shrinks until the check passes.
+fn bounded_float_plane(values: &[f32], mask: &[bool], e: f64) -> Result<IntegerPlane, CodecError> {
+    let mut step = 2.0 * e * 0.999;
+    let mut last_error = None;
+    for _ in 0..8 {
+        match float_plane(values, mask, step, false, e) {
+            Ok(plane) => return Ok(plane),
+            Err(err) => last_error = Some(err),
+        }
+        step *= 0.75;
+    }
+    Err(last_error.expect("at least one attempt"))
+}
+
+/// Refuses a parameter that is not a positive finite number.
+fn check_positive(value: f64, what: &str) -> Result<(), CodecError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(CodecError::InvalidParameters(format!(
+            "{what} must be a positive number, got {value}"
+        )))
+    }
+}
+
+/// Levels from the number of subbands (1 + 3·levels).
+fn level_count(bands: usize) -> u32 {
+    (bands.saturating_sub(1) / 3) as u32
+}

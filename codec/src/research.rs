@@ -1,0 +1,96 @@
+//! Measurements of the coder's design choices, for `wavemesh report`. **Unstable**: behind
+//! the `research` feature, and free to change with the coder.
+
+use crate::error::CodecError;
+use crate::ezw::{self, CoefficientLayout, ContextChoice};
+use crate::pipeline::Quality;
+use crate::quantize::{prepare_53, prepare_97};
+use crate::raster::Raster;
+use crate::wavelet::{self, Wavelet};
+
+/// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
+/// (bits) with every context, with each one removed in turn, and with none.
+pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let levels = wavelet::default_levels(width, height);
+    let norms = wavelet::coding_norms(Wavelet::Int53, width, height, levels);
+    let mask = raster.valid_mask();
+    let prepared = prepare_53(raster, &mask, Quality::Lossless, &norms)?;
+    let subbands = wavelet::subbands(width, height, levels);
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    Ok(context_choices()
+        .into_iter()
+        .map(|(name, choice)| {
+            let bits = ezw::count_bits(&layout, &prepared.coefficients, choice);
+            (name, bits)
+        })
+        .collect())
+}
+
+pub use crate::ezw::{PriorTally, PRIOR_WINDOW};
+
+/// Adds to `tally` the first decisions of every context model in `raster`'s complete
+/// stream with `wavelet` (lossless 5/3, or 9/7 at its finest step): the training of
+/// coder 3's starting probabilities (see [`PriorTally`]).
+pub fn tally_priors(
+    raster: &Raster,
+    wavelet: Wavelet,
+    tally: &mut PriorTally,
+) -> Result<(), CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let levels = wavelet::default_levels(width, height);
+    let norms = wavelet::coding_norms(wavelet, width, height, levels);
+    let mask = raster.valid_mask();
+    let prepared = match wavelet {
+        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms)?,
+        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms),
+    };
+    let subbands = wavelet::subbands(width, height, levels);
+    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    ezw::tally_priors(&layout, &prepared.coefficients, tally);
+    Ok(())
+}
+
+/// Every context, each one left out in turn, and none.
+fn context_choices() -> [(&'static str, ContextChoice); 7] {
+    let all = ContextChoice::ALL;
+    [
+        ("all contexts", all),
+        (
+            "without subband class",
+            ContextChoice {
+                subband_class: false,
+                ..all
+            },
+        ),
+        (
+            "without neighbours",
+            ContextChoice {
+                neighbours: false,
+                ..all
+            },
+        ),
+        (
+            "without parent",
+            ContextChoice {
+                parent: false,
+                ..all
+            },
+        ),
+        (
+            "without neighbour signs",
+            ContextChoice {
+                neighbour_signs: false,
+                ..all
+            },
+        ),
+        (
+            "without refinement age",
+            ContextChoice {
+                refinement_age: false,
+                ..all
+            },
+        ),
+        ("no contexts", ContextChoice::NONE),
+    ]
+}
