@@ -25,9 +25,10 @@
 //! magnitudes and signs ([`Coder::V2`]; [`Coder::V3`], what new streams use, starts
 //! those models from trained probabilities; see [`Contexts`]).
 //!
-//! Encoder and decoder run the same scan ([`scan_pass`]) with a different [`Side`]; the
+//! Encoder and decoder run the same scan (`scan_pass`) with a different `Side`; the
 //! decoder stops at the first decision its bytes cannot determine, leaving every
-//! coefficient with the bits it has (reconstructed mid-interval by [`Decoder::dequantise`]).
+//! coefficient with the bits it has (reconstructed mid-interval by
+//! [`Decoder::into_real_coefficients`] and [`Decoder::integer_coefficients`]).
 
 use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel, BitSink};
 use crate::progress::Stage;

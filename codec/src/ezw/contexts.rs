@@ -49,7 +49,7 @@ pub enum Coder {
     /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent.
     V2,
     /// Coder 2's models, each starting from a trained probability instead of ½ (see
-    /// [`super::priors`]): what every new stream is coded with.
+    /// `ezw/priors.rs`): what every new stream is coded with.
     #[default]
     V3,
 }
