@@ -11,19 +11,10 @@ use crate::wavelet::{self, Wavelet};
 /// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
 /// (bits) with every context, with each one removed in turn, and with none.
 pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
-    let (width, height) = (raster.width, raster.height);
-    let levels = wavelet::default_levels(width, height);
-    let norms = wavelet::coding_norms(Wavelet::Int53, width, height, levels);
-    let mask = raster.valid_mask();
-    let prepared = prepare_53(raster, &mask, Quality::Lossless, &norms)?;
-    let subbands = wavelet::subbands(width, height, levels);
-    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    let (layout, coefficients) = complete_coefficients(raster, Wavelet::Int53)?;
     Ok(context_choices()
         .into_iter()
-        .map(|(name, choice)| {
-            let bits = ezw::count_bits(&layout, &prepared.coefficients, choice);
-            (name, bits)
-        })
+        .map(|(name, choice)| (name, ezw::count_bits(&layout, &coefficients, choice)))
         .collect())
 }
 
@@ -37,6 +28,17 @@ pub fn tally_priors(
     wavelet: Wavelet,
     tally: &mut PriorTally,
 ) -> Result<(), CodecError> {
+    let (layout, coefficients) = complete_coefficients(raster, wavelet)?;
+    ezw::tally_priors(&layout, &coefficients, tally);
+    Ok(())
+}
+
+/// `raster`'s coefficients for a complete stream with `wavelet` (lossless 5/3, or 9/7 at
+/// its finest step) at the default levels, and their layout.
+fn complete_coefficients(
+    raster: &Raster,
+    wavelet: Wavelet,
+) -> Result<(CoefficientLayout, Vec<i32>), CodecError> {
     let (width, height) = (raster.width, raster.height);
     let levels = wavelet::default_levels(width, height);
     let norms = wavelet::coding_norms(wavelet, width, height, levels);
@@ -47,8 +49,7 @@ pub fn tally_priors(
     };
     let subbands = wavelet::subbands(width, height, levels);
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
-    ezw::tally_priors(&layout, &prepared.coefficients, tally);
-    Ok(())
+    Ok((layout, prepared.coefficients))
 }
 
 /// Every context, each one left out in turn, and none.
