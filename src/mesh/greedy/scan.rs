@@ -2,10 +2,10 @@
 //! span, against the plane through its corners — its worst sample (the next vertex to
 //! insert), its squared error (what a data-dependent flip compares), or whether it is
 //! within a tolerance. Spans are found exactly and without a division per row
-//! ([`EdgeWalk`]); a span of valid samples is read as a flat slice ([`row_worst`],
+//! ([`for_each_span`]: corners sorted by row, the long side against the two short ones); a span of valid samples is read as a flat slice ([`row_worst`],
 //! [`row_errors`]); only rows that meet nodata are read sample by sample.
 
-use super::triangulation::Vertex;
+use super::triangulation::{orient, Vertex};
 
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
@@ -82,19 +82,16 @@ impl<'a> Grid<'a> {
     }
 }
 
-/// One side `a → b` of a counter-clockwise triangle walked down the rows it spans: on
-/// row `y` the inside is `x ≥ -⌊offset / d⌋` (a lower bound) or `x ≤ ⌊offset / d⌋` (an
-/// upper bound), where `orient(a, b, (x, y)) = ±d·x + offset`. The floor is kept as
-/// quotient and remainder and stepped by adding, so no row divides.
+/// One side of a triangle walked down its rows from its upper end: its column on each
+/// row is an exact fraction whose floor is kept as quotient and remainder and stepped by
+/// adding, so no row divides.
 #[derive(Debug, Clone, Copy)]
-struct EdgeWalk {
-    rows: (i64, i64),
+struct SideWalk {
     quotient: i64,
     remainder: i64,
     divisor: i64,
     step_quotient: i64,
     step_remainder: i64,
-    lower: bool,
 }
 
 /// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`.
@@ -109,77 +106,106 @@ fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
     }
 }
 
-impl EdgeWalk {
-    /// The walk of side `a → b` from its top row; `None` for a horizontal side (the two
-    /// others bound every row).
+impl SideWalk {
+    /// The walk from `upper` down to `lower` (on a lower row), starting on `upper`'s row.
     #[inline]
-    fn new(a: (i64, i64), b: (i64, i64)) -> Option<EdgeWalk> {
-        let slope = a.1 - b.1;
-        if slope == 0 {
-            return None;
-        }
-        let top = if a.1 < b.1 { a } else { b };
-        let (divisor, lower) = (slope.abs(), slope > 0);
-        let (step_quotient, step_remainder) = floor_div_rem(b.0 - a.0, divisor);
-        // On its top row the side passes through `top`: the bound is exactly `top.0`.
-        Some(EdgeWalk {
-            rows: (a.1.min(b.1), a.1.max(b.1)),
-            quotient: if lower { -top.0 } else { top.0 },
+    fn new(upper: (i64, i64), lower: (i64, i64)) -> SideWalk {
+        let divisor = lower.1 - upper.1;
+        let (step_quotient, step_remainder) = floor_div_rem(lower.0 - upper.0, divisor);
+        SideWalk {
+            quotient: upper.0,
             remainder: 0,
             divisor,
             step_quotient,
             step_remainder,
-            lower,
-        })
+        }
     }
 
-    /// On a row this side spans: narrows `(lo, hi)` to its half-plane and moves to the
-    /// next row.
+    /// The first column on or right of the side on the current row.
     #[inline]
-    fn clip_and_step(&mut self, y: i64, (lo, hi): (i64, i64)) -> (i64, i64) {
-        if y < self.rows.0 || y > self.rows.1 {
-            return (lo, hi);
-        }
-        let span = if self.lower {
-            (lo.max(-self.quotient), hi)
-        } else {
-            (lo, hi.min(self.quotient))
-        };
+    fn ceil(&self) -> i64 {
+        self.quotient + i64::from(self.remainder > 0)
+    }
+
+    /// The last column on or left of the side on the current row.
+    #[inline]
+    fn floor(&self) -> i64 {
+        self.quotient
+    }
+
+    /// Moves to the next row.
+    #[inline]
+    fn step(&mut self) {
         self.quotient += self.step_quotient;
         self.remainder += self.step_remainder;
         if self.remainder >= self.divisor {
             self.remainder -= self.divisor;
             self.quotient += 1;
         }
-        span
     }
 }
 
+/// Calls `row(y, lo, hi)` for rows `from..to` with the span between the sides `left` and
+/// `right`, stepping both; `false` when `row` asked to stop.
+#[inline]
+fn walk_rows(
+    from: i64,
+    to: i64,
+    left: &mut SideWalk,
+    right: &mut SideWalk,
+    row: &mut impl FnMut(i64, i64, i64) -> bool,
+) -> bool {
+    for y in from..to {
+        let (lo, hi) = (left.ceil(), right.floor());
+        if lo <= hi && !row(y, lo, hi) {
+            return false;
+        }
+        left.step();
+        right.step();
+    }
+    true
+}
+
 /// Calls `row(y, lo, hi)` for every row `y` of the counter-clockwise triangle `p` with
-/// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`.
+/// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`. The
+/// corners sorted by row, the long side (top to bottom) bounds one end of every row and
+/// the two short sides the other, the upper one down to the middle corner's row.
 #[inline]
 pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
-    let (min_x, max_x) = (
-        p[0].0.min(p[1].0).min(p[2].0),
-        p[0].0.max(p[1].0).max(p[2].0),
-    );
-    let (min_y, max_y) = (
-        p[0].1.min(p[1].1).min(p[2].1),
-        p[0].1.max(p[1].1).max(p[2].1),
-    );
-    let mut walks = [
-        EdgeWalk::new(p[0], p[1]),
-        EdgeWalk::new(p[1], p[2]),
-        EdgeWalk::new(p[2], p[0]),
-    ];
-    for y in min_y..=max_y {
-        let mut span = (min_x, max_x);
-        for walk in walks.iter_mut().flatten() {
-            span = walk.clip_and_step(y, span);
+    let [mut top, mut middle, mut bottom] = p;
+    if top.1 > middle.1 {
+        std::mem::swap(&mut top, &mut middle);
+    }
+    if middle.1 > bottom.1 {
+        std::mem::swap(&mut middle, &mut bottom);
+    }
+    if top.1 > middle.1 {
+        std::mem::swap(&mut top, &mut middle);
+    }
+    // Rows grow downwards: a positive orientation puts the middle corner left of the long side.
+    let middle_left = orient(top, bottom, middle) > 0;
+    let mut long = SideWalk::new(top, bottom);
+    let mut walk = |from: i64, to: i64, short: &mut SideWalk, long: &mut SideWalk| {
+        if middle_left {
+            walk_rows(from, to, short, long, &mut row)
+        } else {
+            walk_rows(from, to, long, short, &mut row)
         }
-        if span.0 <= span.1 && !row(y, span.0, span.1) {
+    };
+    if middle.1 > top.1 {
+        // With a horizontal bottom side, the upper short side runs to the last row.
+        let end = middle.1 + i64::from(middle.1 == bottom.1);
+        if !walk(top.1, end, &mut SideWalk::new(top, middle), &mut long) {
             return;
         }
+    }
+    if bottom.1 > middle.1 {
+        walk(
+            middle.1,
+            bottom.1 + 1,
+            &mut SideWalk::new(middle, bottom),
+            &mut long,
+        );
     }
 }
 
@@ -264,9 +290,23 @@ fn row_max_error(heights: &[f64], start: f64, gx: f64) -> f64 {
     lanes[0].max(lanes[1]).max(lanes[2].max(lanes[3]))
 }
 
+/// Rows shorter than this are read in one scalar pass (most rows of a fine mesh's
+/// triangles are a few samples long); longer ones by the 4-lane kernel and a search.
+const SHORT_ROW: usize = 8;
+
 /// Largest [`row_error`] over a row and the first column reaching it.
 #[inline]
 fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
+    if heights.len() < SHORT_ROW {
+        let (mut max, mut at) = (-1.0, 0);
+        for (k, &h) in heights.iter().enumerate() {
+            let e = row_error(start, gx, k as f64, h);
+            if e > max {
+                (max, at) = (e, k);
+            }
+        }
+        return (max.max(0.0), at);
+    }
     let max = row_max_error(heights, start, gx);
     let at = heights
         .iter()
