@@ -7,25 +7,31 @@
 
 use super::triangulation::{orient, Vertex};
 
+/// A stored height: `f64`, or `f32` when every valid height is exactly an `f32` (the
+/// same values in half the memory; every error is still computed in `f64`).
+pub trait Height: Copy + Into<f64> {}
+
+impl<T: Copy + Into<f64>> Height for T {}
+
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
-pub struct Grid<'a> {
+pub struct Grid<'a, H: Height = f64> {
     /// Samples per row.
     pub width: usize,
     /// Rows.
     pub height: usize,
     /// `width × height` heights, row-major (any value at nodata samples).
-    pub heights: &'a [f64],
+    pub heights: &'a [H],
     /// Valid samples: bit `s % 64` of word `s / 64` (a `BitVec<u64, Lsb0>`'s words).
     pub valid: &'a [u64],
     /// Whether every sample is valid (rows then need no check).
     no_nodata: bool,
 }
 
-impl<'a> Grid<'a> {
+impl<'a, H: Height> Grid<'a, H> {
     /// The grid of `width × height` `heights` whose valid samples `valid` marks (at
     /// least `width × height` bits).
-    pub fn new(width: usize, height: usize, heights: &'a [f64], valid: &'a [u64]) -> Grid<'a> {
+    pub fn new(width: usize, height: usize, heights: &'a [H], valid: &'a [u64]) -> Grid<'a, H> {
         let n = width * height;
         let (whole, rest) = (n / 64, n % 64);
         let no_nodata = valid.len() * 64 >= n
@@ -75,7 +81,7 @@ impl<'a> Grid<'a> {
     pub fn vertex_height(&self, p: (i64, i64)) -> f64 {
         let s = self.sample(p);
         if self.is_valid(s) {
-            self.heights[s]
+            self.heights[s].into()
         } else {
             0.0
         }
@@ -264,14 +270,14 @@ pub fn scan(width: usize, p: [(i64, i64); 3], z: [f64; 3], mut visit: impl FnMut
 
 /// `|start + gx·k − heights[k]|`: the error at column `k` of a row.
 #[inline]
-fn row_error(start: f64, gx: f64, k: f64, h: f64) -> f64 {
-    (start + gx * k - h).abs()
+fn row_error(start: f64, gx: f64, k: f64, h: impl Height) -> f64 {
+    (start + gx * k - h.into()).abs()
 }
 
 /// Largest [`row_error`] over a row.
 #[inline]
-fn row_max_error(heights: &[f64], start: f64, gx: f64) -> f64 {
-    let error = |k: f64, h: f64| row_error(start, gx, k, h);
+fn row_max_error<H: Height>(heights: &[H], start: f64, gx: f64) -> f64 {
+    let error = |k: f64, h: H| row_error(start, gx, k, h);
     let mut lanes = [0.0f64; 4];
     let mut k = 0.0;
     let chunks = heights.chunks_exact(4);
@@ -296,7 +302,7 @@ const SHORT_ROW: usize = 8;
 
 /// Largest [`row_error`] over a row and the first column reaching it.
 #[inline]
-fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
+fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, usize) {
     if heights.len() < SHORT_ROW {
         let (mut max, mut at) = (-1.0, 0);
         for (k, &h) in heights.iter().enumerate() {
@@ -318,21 +324,21 @@ fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
 
 /// Largest error and sum of squared errors of `start + gx·k` against a row.
 #[inline]
-fn row_errors(heights: &[f64], start: f64, gx: f64) -> (f64, f64) {
+fn row_errors<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, f64) {
     let (mut max, mut sum) = ([0.0f64; 4], [0.0f64; 4]);
     let mut k = 0.0;
     let chunks = heights.chunks_exact(4);
     let tail = chunks.remainder();
     for chunk in chunks {
         for j in 0..4 {
-            let e = start + gx * (k + j as f64) - chunk[j];
+            let e = start + gx * (k + j as f64) - chunk[j].into();
             max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
             sum[j] += e * e;
         }
         k += 4.0;
     }
     for (j, &h) in tail.iter().enumerate() {
-        let e = start + gx * (k + j as f64) - h;
+        let e = start + gx * (k + j as f64) - h.into();
         max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
         sum[j] += e * e;
     }
@@ -356,7 +362,7 @@ pub struct Assessment {
 }
 
 /// The worst sample of the triangle with corners `v` (counter-clockwise).
-pub fn assess(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+pub fn assess<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let p = v.map(Vertex::point);
     if holds_only_its_corners(p) {
         return Assessment {
@@ -379,7 +385,7 @@ fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
 /// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
 /// up to the first row that is not); `None` when it meets nodata or goes over.
 #[inline]
-pub fn assess_within(grid: &Grid, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
+pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
     let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
@@ -419,7 +425,7 @@ pub fn assess_within(grid: &Grid, v: [Vertex; 3], limit: f64) -> Option<Assessme
 
 /// [`assess`] for a triangle that meets nodata, sample by sample: a valid sample next
 /// to nodata (in scan order) is its candidate, so nodata is cut out first.
-fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let (p, z) = (v.map(Vertex::point), v.map(|v| v.z));
     let corners = p.map(|q| grid.sample(q));
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
@@ -436,7 +442,7 @@ fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
             return;
         }
         let was_void = std::mem::replace(&mut previous_void, false);
-        let e = (zs - grid.heights[s]).abs();
+        let e = (zs - grid.heights[s].into()).abs();
         // Corners are exact up to rounding; they are checked only when they would win.
         if (e > error || candidate == u32::MAX || touches_void) && !corners.contains(&s) {
             inner_valid = s as u32;
@@ -477,15 +483,15 @@ fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
 
 /// Largest error and sum of squared errors over the valid samples of the triangle `v`
 /// (counter-clockwise).
-pub fn errors(grid: &Grid, v: [Vertex; 3]) -> (f64, f64) {
+pub fn errors<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> (f64, f64) {
     errors_within(grid, v, f64::INFINITY, f64::INFINITY).unwrap_or((f64::INFINITY, 0.0))
 }
 
 /// [`errors`], or `None` as soon as the largest error is over `max_limit` or the sum
 /// reaches `sum_limit` (the rest of the triangle is then not read).
 #[inline]
-pub fn errors_within(
-    grid: &Grid,
+pub fn errors_within<H: Height>(
+    grid: &Grid<H>,
     v: [Vertex; 3],
     max_limit: f64,
     sum_limit: f64,
@@ -511,10 +517,16 @@ pub fn errors_within(
 }
 
 /// [`row_errors`] over the valid samples of `first..=last` only.
-fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64) -> (f64, f64) {
+fn valid_row_errors<H: Height>(
+    grid: &Grid<H>,
+    first: usize,
+    last: usize,
+    start: f64,
+    gx: f64,
+) -> (f64, f64) {
     let (mut max, mut sum) = (0.0f64, 0.0);
     for s in (first..=last).filter(|&s| grid.is_valid(s)) {
-        let e = start + gx * (s - first) as f64 - grid.heights[s];
+        let e = start + gx * (s - first) as f64 - grid.heights[s].into();
         max = max.max(e.abs());
         sum += e * e;
     }
@@ -523,14 +535,15 @@ fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64)
 
 /// The error at sample `(x, y)` of the plane of triangle `v`, when the sample is on or
 /// inside it.
-pub fn error_at(grid: &Grid, v: [Vertex; 3], (x, y): (i64, i64)) -> Option<f64> {
+pub fn error_at<H: Height>(grid: &Grid<H>, v: [Vertex; 3], (x, y): (i64, i64)) -> Option<f64> {
     let p = v.map(Vertex::point);
     let inside = (0..3).all(|k| {
         let (a, b) = (p[k], p[(k + 1) % 3]);
         (b.0 - a.0) * (y - a.1) - (b.1 - a.1) * (x - a.0) >= 0
     });
     let s = grid.sample((x, y));
-    (inside && grid.is_valid(s)).then(|| (Plane::through(v).at(x, y) - grid.heights[s]).abs())
+    (inside && grid.is_valid(s))
+        .then(|| (Plane::through(v).at(x, y) - grid.heights[s].into()).abs())
 }
 
 #[cfg(test)]
