@@ -100,13 +100,16 @@ struct SideWalk {
     step_remainder: i64,
 }
 
-/// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`.
+/// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`, in 32 bits when
+/// both fit (a grid's coordinate differences do; the 64-bit division is slower).
 #[inline]
 fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
     if (0..d).contains(&n) {
         (0, n)
     } else if (-d..0).contains(&n) {
         (-1, n + d)
+    } else if let (Ok(n), Ok(d)) = (i32::try_from(n), i32::try_from(d)) {
+        (n.div_euclid(d).into(), n.rem_euclid(d).into())
     } else {
         (n.div_euclid(d), n.rem_euclid(d))
     }
