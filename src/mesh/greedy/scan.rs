@@ -2,8 +2,10 @@
 //! span, against the plane through its corners — its worst sample (the next vertex to
 //! insert), its squared error (what a data-dependent flip compares), or whether it is
 //! within a tolerance. Spans are found exactly and without a division per row
-//! ([`for_each_span`]: corners sorted by row, the long side against the two short ones); a span of valid samples is read as a flat slice ([`row_worst`],
-//! [`row_errors`]); only rows that meet nodata are read sample by sample.
+//! ([`for_each_span`]: corners sorted by row, the long side against the two short
+//! ones); a span of valid samples is read as a flat slice ([`row_worst`],
+//! [`row_errors`]); only rows that meet nodata are read sample by sample. Heights may
+//! be stored as `f32` ([`Height`]); errors are always computed in `f64`.
 
 use super::triangulation::{orient, Vertex};
 
