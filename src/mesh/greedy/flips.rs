@@ -5,7 +5,7 @@
 //! row that rules it out, and an edge whose two triangles did not change since it was
 //! last weighed is not weighed again.
 
-use super::scan::{assess_within, error_at, errors, errors_within};
+use super::scan::{assess_within, error_at, errors, errors_within, Height};
 use super::triangulation::{orient, Vertex, NONE};
 use super::{GreedyMesher, GridMesh};
 
@@ -24,7 +24,7 @@ struct FlipState {
     weighed: Vec<u32>,
 }
 
-impl GreedyMesher<'_> {
+impl<H: Height> GreedyMesher<'_, H> {
     /// Flips a side of triangle `t` (over `tolerance`) when both triangles the flip
     /// makes are within `tolerance`: the tolerance met there without a new vertex.
     pub(super) fn resolving_flip(&mut self, t: u32, tolerance: f64) -> bool {

@@ -23,7 +23,7 @@ use bitvec::prelude::*;
 
 use super::GridMesh;
 use queue::WorstFirst;
-use scan::{assess, Assessment, Grid};
+use scan::{assess, Assessment, Grid, Height};
 use triangulation::{in_circle, orient, Triangulation, NONE};
 
 /// When insertion stops.
@@ -56,8 +56,8 @@ pub enum GreedyError {
 
 /// Greedy insertion over one grid.
 #[derive(Debug)]
-pub struct GreedyMesher<'a> {
-    grid: Grid<'a>,
+pub struct GreedyMesher<'a, H: Height = f64> {
+    grid: Grid<'a, H>,
     tin: Triangulation,
     assessments: Vec<Assessment>,
     queue: WorstFirst,
@@ -71,9 +71,9 @@ pub struct GreedyMesher<'a> {
     resolving_flips: bool,
 }
 
-impl<'a> GreedyMesher<'a> {
+impl<'a, H: Height> GreedyMesher<'a, H> {
     /// A mesher of `grid` (the rectangle as two triangles).
-    pub fn new(grid: Grid<'a>) -> Result<GreedyMesher<'a>, GreedyError> {
+    pub fn new(grid: Grid<'a, H>) -> Result<GreedyMesher<'a, H>, GreedyError> {
         let n = grid.width * grid.height;
         if grid.width < 2 || grid.height < 2 {
             return Err(GreedyError::TooSmall {
@@ -84,7 +84,7 @@ impl<'a> GreedyMesher<'a> {
         if grid.heights.len() != n || grid.valid.len() * 64 < n {
             return Err(GreedyError::SizeMismatch(grid.heights.len(), n));
         }
-        if let Some(s) = (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].is_finite()) {
+        if let Some(s) = (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].into().is_finite()) {
             return Err(GreedyError::NotFinite(s));
         }
         let mut mesher = GreedyMesher {
@@ -103,7 +103,7 @@ impl<'a> GreedyMesher<'a> {
 
     /// Before inserting into a triangle over a tolerance, try flipping one of its sides
     /// so that both triangles the flip makes are within it (no vertex needed there).
-    pub fn with_resolving_flips(mut self) -> GreedyMesher<'a> {
+    pub fn with_resolving_flips(mut self) -> GreedyMesher<'a, H> {
         self.resolving_flips = true;
         self
     }
@@ -272,7 +272,9 @@ impl<'a> GreedyMesher<'a> {
 
 /// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`. With
 /// `optimise` (passes), the data-dependent refinements: resolving flips during
-/// insertion towards a tolerance, error-lowering flips after it.
+/// insertion towards a tolerance, error-lowering flips after it. Heights are read as
+/// `f32` when every valid one is exactly an `f32` (integer and `f32` DEMs: the same
+/// mesh, half the memory traffic), else as they are.
 pub fn greedy_mesh(
     width: usize,
     height: usize,
@@ -284,7 +286,31 @@ pub fn greedy_mesh(
     let mut aligned = valid.to_bitvec();
     aligned.force_align();
     let valid = aligned.as_raw_slice();
-    let grid = Grid::new(width, height, heights, valid);
+    match exact_f32(heights, &aligned) {
+        Some(narrow) => mesh_grid(Grid::new(width, height, &narrow, valid), target, optimise),
+        None => mesh_grid(Grid::new(width, height, heights, valid), target, optimise),
+    }
+}
+
+/// `heights` as `f32`, when every valid one converts exactly (nodata may hold anything).
+fn exact_f32(heights: &[f64], valid: &BitSlice<u64, Lsb0>) -> Option<Vec<f32>> {
+    let narrow: Vec<f32> = heights.iter().map(|&h| h as f32).collect();
+    let exact = |(&h, &n): (&f64, &f32)| f64::from(n) == h;
+    let all_exact = heights.iter().zip(&narrow).all(exact)
+        || heights
+            .iter()
+            .zip(&narrow)
+            .enumerate()
+            .all(|(s, pair)| exact(pair) || !valid.get(s).is_some_and(|v| *v));
+    all_exact.then_some(narrow)
+}
+
+/// [`greedy_mesh`] of a grid.
+fn mesh_grid<H: Height>(
+    grid: Grid<H>,
+    target: GreedyTarget,
+    optimise: Option<usize>,
+) -> Result<GridMesh, GreedyError> {
     let mut mesher = GreedyMesher::new(grid)?;
     if optimise.is_some() {
         mesher = mesher.with_resolving_flips();
@@ -436,6 +462,17 @@ mod tests {
             assert_eq!(covered[s], valid[s], "sample {s}");
         }
         assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 1.0);
+    }
+
+    #[test]
+    fn heights_narrow_to_f32_only_when_every_valid_one_is_exact() {
+        let mut valid = bitvec![u64, Lsb0; 1; 3];
+        let integers = [1.0, -3.0, 4096.0];
+        assert_eq!(exact_f32(&integers, &valid), Some(vec![1.0, -3.0, 4096.0]));
+        let tenth = [1.0, 0.1, 2.0];
+        assert_eq!(exact_f32(&tenth, &valid), None);
+        valid.set(1, false);
+        assert!(exact_f32(&tenth, &valid).is_some());
     }
 
     #[test]

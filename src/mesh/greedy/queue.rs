@@ -76,39 +76,47 @@ impl WorstFirst {
         self.position[self.heap[at].1 as usize] = at as u32;
     }
 
+    /// Moves the entry at `at` up to its place: smaller parents move down into the hole
+    /// it leaves (one write an entry moved, no swaps).
     #[inline]
     fn sift_up(&mut self, mut at: usize) {
+        let entry = self.heap[at];
         while at > 0 {
             let parent = (at - 1) / 2;
-            if self.heap[parent] >= self.heap[at] {
+            if self.heap[parent] >= entry {
                 break;
             }
-            self.heap.swap(parent, at);
+            self.heap[at] = self.heap[parent];
             self.place(at);
             at = parent;
         }
+        self.heap[at] = entry;
         self.place(at);
     }
 
+    /// Moves the entry at `at` down to its place: larger children move up into the hole.
     #[inline]
     fn sift_down(&mut self, mut at: usize) {
-        let n = self.heap.len();
+        let (n, entry) = (self.heap.len(), self.heap[at]);
         loop {
-            let (left, right) = (2 * at + 1, 2 * at + 2);
-            let mut largest = at;
-            if left < n && self.heap[left] > self.heap[largest] {
-                largest = left;
-            }
-            if right < n && self.heap[right] > self.heap[largest] {
-                largest = right;
-            }
-            if largest == at {
+            let left = 2 * at + 1;
+            if left >= n {
                 break;
             }
-            self.heap.swap(largest, at);
+            let right = left + 1;
+            let child = if right < n && self.heap[right] > self.heap[left] {
+                right
+            } else {
+                left
+            };
+            if self.heap[child] <= entry {
+                break;
+            }
+            self.heap[at] = self.heap[child];
             self.place(at);
-            at = largest;
+            at = child;
         }
+        self.heap[at] = entry;
         self.place(at);
     }
 }

@@ -2,30 +2,38 @@
 //! span, against the plane through its corners — its worst sample (the next vertex to
 //! insert), its squared error (what a data-dependent flip compares), or whether it is
 //! within a tolerance. Spans are found exactly and without a division per row
-//! ([`EdgeWalk`]); a span of valid samples is read as a flat slice ([`row_worst`],
-//! [`row_errors`]); only rows that meet nodata are read sample by sample.
+//! ([`for_each_span`]: corners sorted by row, the long side against the two short
+//! ones); a span of valid samples is read as a flat slice ([`row_worst`],
+//! [`row_errors`]); only rows that meet nodata are read sample by sample. Heights may
+//! be stored as `f32` ([`Height`]); errors are always computed in `f64`.
 
-use super::triangulation::Vertex;
+use super::triangulation::{orient, Vertex};
+
+/// A stored height: `f64`, or `f32` when every valid height is exactly an `f32` (the
+/// same values in half the memory; every error is still computed in `f64`).
+pub trait Height: Copy + Into<f64> {}
+
+impl<T: Copy + Into<f64>> Height for T {}
 
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
-pub struct Grid<'a> {
+pub struct Grid<'a, H: Height = f64> {
     /// Samples per row.
     pub width: usize,
     /// Rows.
     pub height: usize,
     /// `width × height` heights, row-major (any value at nodata samples).
-    pub heights: &'a [f64],
+    pub heights: &'a [H],
     /// Valid samples: bit `s % 64` of word `s / 64` (a `BitVec<u64, Lsb0>`'s words).
     pub valid: &'a [u64],
     /// Whether every sample is valid (rows then need no check).
     no_nodata: bool,
 }
 
-impl<'a> Grid<'a> {
+impl<'a, H: Height> Grid<'a, H> {
     /// The grid of `width × height` `heights` whose valid samples `valid` marks (at
     /// least `width × height` bits).
-    pub fn new(width: usize, height: usize, heights: &'a [f64], valid: &'a [u64]) -> Grid<'a> {
+    pub fn new(width: usize, height: usize, heights: &'a [H], valid: &'a [u64]) -> Grid<'a, H> {
         let n = width * height;
         let (whole, rest) = (n / 64, n % 64);
         let no_nodata = valid.len() * 64 >= n
@@ -75,111 +83,140 @@ impl<'a> Grid<'a> {
     pub fn vertex_height(&self, p: (i64, i64)) -> f64 {
         let s = self.sample(p);
         if self.is_valid(s) {
-            self.heights[s]
+            self.heights[s].into()
         } else {
             0.0
         }
     }
 }
 
-/// One side `a → b` of a counter-clockwise triangle walked down the rows it spans: on
-/// row `y` the inside is `x ≥ -⌊offset / d⌋` (a lower bound) or `x ≤ ⌊offset / d⌋` (an
-/// upper bound), where `orient(a, b, (x, y)) = ±d·x + offset`. The floor is kept as
-/// quotient and remainder and stepped by adding, so no row divides.
+/// One side of a triangle walked down its rows from its upper end: its column on each
+/// row is an exact fraction whose floor is kept as quotient and remainder and stepped by
+/// adding, so no row divides.
 #[derive(Debug, Clone, Copy)]
-struct EdgeWalk {
-    rows: (i64, i64),
+struct SideWalk {
     quotient: i64,
     remainder: i64,
     divisor: i64,
     step_quotient: i64,
     step_remainder: i64,
-    lower: bool,
 }
 
-/// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`.
+/// `(⌊n / d⌋, n mod d)` for `d > 0`, dividing only when `|n| ≥ d`, in 32 bits when
+/// both fit (a grid's coordinate differences do; the 64-bit division is slower).
 #[inline]
 fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
     if (0..d).contains(&n) {
         (0, n)
     } else if (-d..0).contains(&n) {
         (-1, n + d)
+    } else if let (Ok(n), Ok(d)) = (i32::try_from(n), i32::try_from(d)) {
+        (n.div_euclid(d).into(), n.rem_euclid(d).into())
     } else {
         (n.div_euclid(d), n.rem_euclid(d))
     }
 }
 
-impl EdgeWalk {
-    /// The walk of side `a → b` from its top row; `None` for a horizontal side (the two
-    /// others bound every row).
+impl SideWalk {
+    /// The walk from `upper` down to `lower` (on a lower row), starting on `upper`'s row.
     #[inline]
-    fn new(a: (i64, i64), b: (i64, i64)) -> Option<EdgeWalk> {
-        let slope = a.1 - b.1;
-        if slope == 0 {
-            return None;
-        }
-        let top = if a.1 < b.1 { a } else { b };
-        let (divisor, lower) = (slope.abs(), slope > 0);
-        let (step_quotient, step_remainder) = floor_div_rem(b.0 - a.0, divisor);
-        // On its top row the side passes through `top`: the bound is exactly `top.0`.
-        Some(EdgeWalk {
-            rows: (a.1.min(b.1), a.1.max(b.1)),
-            quotient: if lower { -top.0 } else { top.0 },
+    fn new(upper: (i64, i64), lower: (i64, i64)) -> SideWalk {
+        let divisor = lower.1 - upper.1;
+        let (step_quotient, step_remainder) = floor_div_rem(lower.0 - upper.0, divisor);
+        SideWalk {
+            quotient: upper.0,
             remainder: 0,
             divisor,
             step_quotient,
             step_remainder,
-            lower,
-        })
+        }
     }
 
-    /// On a row this side spans: narrows `(lo, hi)` to its half-plane and moves to the
-    /// next row.
+    /// The first column on or right of the side on the current row.
     #[inline]
-    fn clip_and_step(&mut self, y: i64, (lo, hi): (i64, i64)) -> (i64, i64) {
-        if y < self.rows.0 || y > self.rows.1 {
-            return (lo, hi);
-        }
-        let span = if self.lower {
-            (lo.max(-self.quotient), hi)
-        } else {
-            (lo, hi.min(self.quotient))
-        };
+    fn ceil(&self) -> i64 {
+        self.quotient + i64::from(self.remainder > 0)
+    }
+
+    /// The last column on or left of the side on the current row.
+    #[inline]
+    fn floor(&self) -> i64 {
+        self.quotient
+    }
+
+    /// Moves to the next row.
+    #[inline]
+    fn step(&mut self) {
         self.quotient += self.step_quotient;
         self.remainder += self.step_remainder;
         if self.remainder >= self.divisor {
             self.remainder -= self.divisor;
             self.quotient += 1;
         }
-        span
     }
 }
 
+/// Calls `row(y, lo, hi)` for rows `from..to` with the span between the sides `left` and
+/// `right`, stepping both; `false` when `row` asked to stop.
+#[inline]
+fn walk_rows(
+    from: i64,
+    to: i64,
+    left: &mut SideWalk,
+    right: &mut SideWalk,
+    row: &mut impl FnMut(i64, i64, i64) -> bool,
+) -> bool {
+    for y in from..to {
+        let (lo, hi) = (left.ceil(), right.floor());
+        if lo <= hi && !row(y, lo, hi) {
+            return false;
+        }
+        left.step();
+        right.step();
+    }
+    true
+}
+
 /// Calls `row(y, lo, hi)` for every row `y` of the counter-clockwise triangle `p` with
-/// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`.
+/// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`. The
+/// corners sorted by row, the long side (top to bottom) bounds one end of every row and
+/// the two short sides the other, the upper one down to the middle corner's row.
 #[inline]
 pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
-    let (min_x, max_x) = (
-        p[0].0.min(p[1].0).min(p[2].0),
-        p[0].0.max(p[1].0).max(p[2].0),
-    );
-    let (min_y, max_y) = (
-        p[0].1.min(p[1].1).min(p[2].1),
-        p[0].1.max(p[1].1).max(p[2].1),
-    );
-    let mut walks = [
-        EdgeWalk::new(p[0], p[1]),
-        EdgeWalk::new(p[1], p[2]),
-        EdgeWalk::new(p[2], p[0]),
-    ];
-    for y in min_y..=max_y {
-        let mut span = (min_x, max_x);
-        for walk in walks.iter_mut().flatten() {
-            span = walk.clip_and_step(y, span);
+    let [mut top, mut middle, mut bottom] = p;
+    if top.1 > middle.1 {
+        std::mem::swap(&mut top, &mut middle);
+    }
+    if middle.1 > bottom.1 {
+        std::mem::swap(&mut middle, &mut bottom);
+    }
+    if top.1 > middle.1 {
+        std::mem::swap(&mut top, &mut middle);
+    }
+    // Rows grow downwards: a positive orientation puts the middle corner left of the long side.
+    let middle_left = orient(top, bottom, middle) > 0;
+    let mut long = SideWalk::new(top, bottom);
+    let mut walk = |from: i64, to: i64, short: &mut SideWalk, long: &mut SideWalk| {
+        if middle_left {
+            walk_rows(from, to, short, long, &mut row)
+        } else {
+            walk_rows(from, to, long, short, &mut row)
         }
-        if span.0 <= span.1 && !row(y, span.0, span.1) {
+    };
+    if middle.1 > top.1 {
+        // With a horizontal bottom side, the upper short side runs to the last row.
+        let end = middle.1 + i64::from(middle.1 == bottom.1);
+        if !walk(top.1, end, &mut SideWalk::new(top, middle), &mut long) {
             return;
         }
+    }
+    if bottom.1 > middle.1 {
+        walk(
+            middle.1,
+            bottom.1 + 1,
+            &mut SideWalk::new(middle, bottom),
+            &mut long,
+        );
     }
 }
 
@@ -238,14 +275,14 @@ pub fn scan(width: usize, p: [(i64, i64); 3], z: [f64; 3], mut visit: impl FnMut
 
 /// `|start + gx·k − heights[k]|`: the error at column `k` of a row.
 #[inline]
-fn row_error(start: f64, gx: f64, k: f64, h: f64) -> f64 {
-    (start + gx * k - h).abs()
+fn row_error(start: f64, gx: f64, k: f64, h: impl Height) -> f64 {
+    (start + gx * k - h.into()).abs()
 }
 
 /// Largest [`row_error`] over a row.
 #[inline]
-fn row_max_error(heights: &[f64], start: f64, gx: f64) -> f64 {
-    let error = |k: f64, h: f64| row_error(start, gx, k, h);
+fn row_max_error<H: Height>(heights: &[H], start: f64, gx: f64) -> f64 {
+    let error = |k: f64, h: H| row_error(start, gx, k, h);
     let mut lanes = [0.0f64; 4];
     let mut k = 0.0;
     let chunks = heights.chunks_exact(4);
@@ -264,9 +301,23 @@ fn row_max_error(heights: &[f64], start: f64, gx: f64) -> f64 {
     lanes[0].max(lanes[1]).max(lanes[2].max(lanes[3]))
 }
 
+/// Rows shorter than this are read in one scalar pass (most rows of a fine mesh's
+/// triangles are a few samples long); longer ones by the 4-lane kernel and a search.
+const SHORT_ROW: usize = 8;
+
 /// Largest [`row_error`] over a row and the first column reaching it.
 #[inline]
-fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
+fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, usize) {
+    if heights.len() < SHORT_ROW {
+        let (mut max, mut at) = (-1.0, 0);
+        for (k, &h) in heights.iter().enumerate() {
+            let e = row_error(start, gx, k as f64, h);
+            if e > max {
+                (max, at) = (e, k);
+            }
+        }
+        return (max.max(0.0), at);
+    }
     let max = row_max_error(heights, start, gx);
     let at = heights
         .iter()
@@ -278,21 +329,21 @@ fn row_worst(heights: &[f64], start: f64, gx: f64) -> (f64, usize) {
 
 /// Largest error and sum of squared errors of `start + gx·k` against a row.
 #[inline]
-fn row_errors(heights: &[f64], start: f64, gx: f64) -> (f64, f64) {
+fn row_errors<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, f64) {
     let (mut max, mut sum) = ([0.0f64; 4], [0.0f64; 4]);
     let mut k = 0.0;
     let chunks = heights.chunks_exact(4);
     let tail = chunks.remainder();
     for chunk in chunks {
         for j in 0..4 {
-            let e = start + gx * (k + j as f64) - chunk[j];
+            let e = start + gx * (k + j as f64) - chunk[j].into();
             max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
             sum[j] += e * e;
         }
         k += 4.0;
     }
     for (j, &h) in tail.iter().enumerate() {
-        let e = start + gx * (k + j as f64) - h;
+        let e = start + gx * (k + j as f64) - h.into();
         max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
         sum[j] += e * e;
     }
@@ -316,7 +367,7 @@ pub struct Assessment {
 }
 
 /// The worst sample of the triangle with corners `v` (counter-clockwise).
-pub fn assess(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+pub fn assess<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let p = v.map(Vertex::point);
     if holds_only_its_corners(p) {
         return Assessment {
@@ -339,7 +390,7 @@ fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
 /// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
 /// up to the first row that is not); `None` when it meets nodata or goes over.
 #[inline]
-pub fn assess_within(grid: &Grid, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
+pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
     let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
@@ -379,7 +430,7 @@ pub fn assess_within(grid: &Grid, v: [Vertex; 3], limit: f64) -> Option<Assessme
 
 /// [`assess`] for a triangle that meets nodata, sample by sample: a valid sample next
 /// to nodata (in scan order) is its candidate, so nodata is cut out first.
-fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
+fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let (p, z) = (v.map(Vertex::point), v.map(|v| v.z));
     let corners = p.map(|q| grid.sample(q));
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
@@ -396,7 +447,7 @@ fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
             return;
         }
         let was_void = std::mem::replace(&mut previous_void, false);
-        let e = (zs - grid.heights[s]).abs();
+        let e = (zs - grid.heights[s].into()).abs();
         // Corners are exact up to rounding; they are checked only when they would win.
         if (e > error || candidate == u32::MAX || touches_void) && !corners.contains(&s) {
             inner_valid = s as u32;
@@ -437,15 +488,15 @@ fn assess_with_nodata(grid: &Grid, v: [Vertex; 3]) -> Assessment {
 
 /// Largest error and sum of squared errors over the valid samples of the triangle `v`
 /// (counter-clockwise).
-pub fn errors(grid: &Grid, v: [Vertex; 3]) -> (f64, f64) {
+pub fn errors<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> (f64, f64) {
     errors_within(grid, v, f64::INFINITY, f64::INFINITY).unwrap_or((f64::INFINITY, 0.0))
 }
 
 /// [`errors`], or `None` as soon as the largest error is over `max_limit` or the sum
 /// reaches `sum_limit` (the rest of the triangle is then not read).
 #[inline]
-pub fn errors_within(
-    grid: &Grid,
+pub fn errors_within<H: Height>(
+    grid: &Grid<H>,
     v: [Vertex; 3],
     max_limit: f64,
     sum_limit: f64,
@@ -471,10 +522,16 @@ pub fn errors_within(
 }
 
 /// [`row_errors`] over the valid samples of `first..=last` only.
-fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64) -> (f64, f64) {
+fn valid_row_errors<H: Height>(
+    grid: &Grid<H>,
+    first: usize,
+    last: usize,
+    start: f64,
+    gx: f64,
+) -> (f64, f64) {
     let (mut max, mut sum) = (0.0f64, 0.0);
     for s in (first..=last).filter(|&s| grid.is_valid(s)) {
-        let e = start + gx * (s - first) as f64 - grid.heights[s];
+        let e = start + gx * (s - first) as f64 - grid.heights[s].into();
         max = max.max(e.abs());
         sum += e * e;
     }
@@ -483,14 +540,15 @@ fn valid_row_errors(grid: &Grid, first: usize, last: usize, start: f64, gx: f64)
 
 /// The error at sample `(x, y)` of the plane of triangle `v`, when the sample is on or
 /// inside it.
-pub fn error_at(grid: &Grid, v: [Vertex; 3], (x, y): (i64, i64)) -> Option<f64> {
+pub fn error_at<H: Height>(grid: &Grid<H>, v: [Vertex; 3], (x, y): (i64, i64)) -> Option<f64> {
     let p = v.map(Vertex::point);
     let inside = (0..3).all(|k| {
         let (a, b) = (p[k], p[(k + 1) % 3]);
         (b.0 - a.0) * (y - a.1) - (b.1 - a.1) * (x - a.0) >= 0
     });
     let s = grid.sample((x, y));
-    (inside && grid.is_valid(s)).then(|| (Plane::through(v).at(x, y) - grid.heights[s]).abs())
+    (inside && grid.is_valid(s))
+        .then(|| (Plane::through(v).at(x, y) - grid.heights[s].into()).abs())
 }
 
 #[cfg(test)]
