@@ -254,13 +254,15 @@ fn stream_header(
     top: Option<u32>,
 ) -> Header {
     let sample_type = raster.sample_type();
-    Header {
-        width: raster.width as u32,
-        height: raster.height as u32,
+    let whole = Header::whole_raster(
+        raster.width as u32,
+        raster.height as u32,
         sample_type,
         wavelet,
-        levels: levels as u8,
-        mode: prepared.mode,
+        levels as u8,
+        prepared.mode,
+    );
+    Header {
         mapping: prepared.mapping,
         max_error: prepared.max_error,
         coefficient_step: prepared.coefficient_step,
@@ -277,16 +279,9 @@ fn stream_header(
             .zip(&prepared.scales)
             .map(|(&s, &c)| (s as u8, c))
             .collect(),
-        payload_len: 0,
-        payload_truncated: false,
-        mask_len: 0,
-        residual_len: 0,
-        correction_step: 0.0,
-        ladder_len: 0,
-        passes: Vec::new(),
         georef: raster.georef.clone(),
         metadata: raster.metadata.clone(),
-        tiling: None,
+        ..whole
     }
 }
 
