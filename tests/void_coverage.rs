@@ -44,7 +44,7 @@ impl Noise {
     }
 }
 
-/// Smooth hills with some roughness, `w × h`, as f32.
+/// Smooth hills with some roughness, `w × h`.
 fn hills(w: usize, h: usize) -> Vec<f64> {
     let mut noise = Noise(0x9e37_79b9_7f4a_7c15);
     (0..w * h)
