@@ -903,7 +903,7 @@ mod tests {
 
     #[test]
     fn every_coder_round_trips() {
-        for coder in [Coder::V1, Coder::V2, Coder::V3] {
+        for coder in [Coder::V1, Coder::V2, Coder::V3, Coder::V4] {
             let mut h = sample_header();
             h.coder = coder;
             h.mask_len = 0;

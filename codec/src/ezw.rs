@@ -18,12 +18,17 @@
 //! 2. **subordinate**: every coefficient significant before this pass gets its bit at
 //!    this plane.
 //!
+//! [`Coder::V4`], what new streams use, runs a **propagation** scan before those two:
+//! the insignificant coefficients with a significant parent and a significant neighbour
+//! get their significance decision first, so prefixes cut inside a pass keep more of its
+//! value (see `ezw/propagation.rs`).
+//!
 //! The four-valued symbols go through binary decisions: significant? then the sign, or
 //! (for coefficients with children) zerotree root? Each decision has its own adaptive
 //! [`BitModel`], chosen by subband class and by what is known of the coefficient's
 //! spatial neighbours and of its parent: their significance ([`Coder::V1`]) or their
-//! magnitudes and signs ([`Coder::V2`]; [`Coder::V3`], what new streams use, starts
-//! those models from trained probabilities; see [`Contexts`]).
+//! magnitudes and signs ([`Coder::V2`]; [`Coder::V3`] and [`Coder::V4`] start those
+//! models from trained probabilities; see [`Contexts`]).
 //!
 //! Encoder and decoder run the same scan (`scan_pass`) with a different `Side`; the
 //! decoder stops at the first decision its bytes cannot determine, leaving every
@@ -37,6 +42,7 @@ use crate::wavelet::{Orientation, Subband};
 
 mod contexts;
 mod priors;
+mod propagation;
 
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
@@ -45,7 +51,6 @@ pub use priors::{PriorTally, PRIOR_WINDOW};
 
 /// Flag bits kept per coefficient during a scan.
 const SIG: u8 = 1; // significant
-const NEW: u8 = 2; // became significant in the current pass (no refinement bit yet)
 const PLANE_SHIFT: u32 = 3; // bits 3..8: lowest plane known for a significant coefficient
 
 /// Highest global plane a stream may use (descendant plane masks are `u64`).
@@ -219,17 +224,29 @@ struct FlagGrid {
     stride: usize,
     sig_bits: Vec<u64>,
     zt_bits: Vec<u64>,
+    /// Coefficients whose significance the propagation scan of the current pass coded
+    /// (empty when the coder has no propagation scan).
+    prop_bits: Vec<u64>,
+    /// Significant coefficients in each band.
+    significant_in_band: Vec<u32>,
     words_per_row: usize,
 }
 
 impl FlagGrid {
-    fn new(width: usize, height: usize) -> FlagGrid {
+    fn new(layout: &CoefficientLayout, coder: Coder) -> FlagGrid {
+        let (width, height) = (layout.width, layout.height);
         let words_per_row = width.div_ceil(64);
         FlagGrid {
             flags: vec![0; (width + 2) * (height + 2)],
             stride: width + 2,
             sig_bits: vec![0; words_per_row * height],
             zt_bits: vec![0; words_per_row * height],
+            prop_bits: if coder.propagates() {
+                vec![0; words_per_row * height]
+            } else {
+                Vec::new()
+            },
+            significant_in_band: vec![0; layout.bands.len()],
             words_per_row,
         }
     }
@@ -341,7 +358,8 @@ enum ScanEnd {
     Stopped,
 }
 
-/// Runs pass `n` (dominant then subordinate scan) for one side.
+/// Runs pass `n` for one side: with fractional passes ([`Coder::V4`]) the propagation
+/// scan first, then the dominant and the subordinate scans.
 fn scan_pass<S: Side>(
     layout: &CoefficientLayout,
     grid: &mut FlagGrid,
@@ -349,65 +367,143 @@ fn scan_pass<S: Side>(
     side: &mut S,
     n: u32,
 ) -> ScanEnd {
+    if contexts.coder.propagates() {
+        grid.prop_bits.fill(0);
+        if let ScanEnd::Stopped = propagation::scan(layout, grid, contexts, side, n) {
+            return ScanEnd::Stopped;
+        }
+    }
+    if let ScanEnd::Stopped = dominant_scan(layout, grid, contexts, side, n) {
+        return ScanEnd::Stopped;
+    }
+    subordinate_scan(layout, grid, contexts, side, n)
+}
+
+/// Clears the zerotree coverage of a band that takes no part in pass `n`: it covers
+/// none of its children.
+fn clear_coverage(grid: &mut FlagGrid, sub: Subband) {
+    for y in 0..sub.height {
+        let row = grid.bit(sub.x0, sub.y0 + y);
+        for chunk in (0..sub.width).step_by(64) {
+            deposit_bits(
+                &mut grid.zt_bits,
+                row + chunk,
+                (sub.width - chunk).min(64),
+                0,
+            );
+        }
+    }
+}
+
+/// Where band `band`'s parents are in pass `n`, if it has parents taking part.
+fn parent_band(layout: &CoefficientLayout, band: &Band, n: u32) -> Option<ParentBand> {
+    let pb = band.parent?;
+    let ps = layout.bands[pb].sub;
+    Some(ParentBand {
+        x0: ps.x0,
+        y0: ps.y0,
+        width: ps.width,
+        height: ps.height,
+        halve: band.halve,
+        plane: layout.bands[pb].plane_in_pass(n)?,
+    })
+}
+
+/// The parents of row `y` of a band whose parent band is `parent`, if the row has any.
+fn parent_row(
+    grid: &FlagGrid,
+    parent: Option<&ParentBand>,
+    y: usize,
+    width: usize,
+) -> Option<ParentRow> {
+    let pb = parent?;
+    let py = if pb.halve { y / 2 } else { y };
+    (py < pb.height).then(|| ParentRow {
+        bit: grid.bit(pb.x0, pb.y0 + py),
+        flag: grid.at(pb.x0, pb.y0 + py),
+        index: (pb.y0 + py) * width + pb.x0,
+        width: pb.width,
+        halve: pb.halve,
+        plane: pb.plane,
+    })
+}
+
+/// Mask of `len` (≤ 64) ones.
+#[inline]
+fn ones(len: usize) -> u64 {
+    if len < 64 {
+        (1u64 << len) - 1
+    } else {
+        u64::MAX
+    }
+}
+
+/// Codes the significance decision (and the sign, when significant) of insignificant
+/// coefficient `at` at own plane `p`, committing it when significant. `None` when the
+/// side stopped; else whether it became significant and the zerotree model index.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn code_significance<S: Side>(
+    grid: &mut FlagGrid,
+    contexts: &mut Contexts,
+    side: &mut S,
+    at: At,
+    band: &Band,
+    b: usize,
+    p: u32,
+    parent_row: Option<ParentRow>,
+    bit: usize,
+) -> Option<(bool, usize)> {
+    let class = band.class * contexts.choice.subband_class as usize;
+    let (ctx, zctx) = dominant_contexts(contexts, grid, side, at, class, p, parent_row);
+    let i = at.index;
+    let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
+    if side.stopped() {
+        return None;
+    }
+    if is_significant {
+        let sctx = sign_context(contexts, grid, side, at, band.orientation, parent_row);
+        let negative = side.sign(i, &mut contexts.sign[sctx]);
+        if side.stopped() {
+            return None;
+        }
+        side.commit_significant(i, b, p, negative);
+        grid.flags[at.flag] = SIG | ((p as u8) << PLANE_SHIFT);
+        grid.sig_bits[bit / 64] |= 1 << (bit % 64);
+        grid.significant_in_band[b] += 1;
+    }
+    Some((is_significant, zctx))
+}
+
+/// The dominant scan of pass `n`, 64 coefficients of a band row at a time: the bitmaps
+/// give the coefficients that are neither significant nor covered by their parent's
+/// zerotree, and only those get decisions (those the propagation scan visited only the
+/// zerotree one).
+fn dominant_scan<S: Side>(
+    layout: &CoefficientLayout,
+    grid: &mut FlagGrid,
+    contexts: &mut Contexts,
+    side: &mut S,
+    n: u32,
+) -> ScanEnd {
     let (w, h) = (layout.width, layout.height);
-    // Dominant scan, 64 coefficients of a band row at a time: the bitmaps give the
-    // coefficients that are neither significant nor covered by their parent's zerotree,
-    // and only those get decisions.
     for (b, band) in layout.bands.iter().enumerate() {
         let sub = band.sub;
         if sub.width == 0 || sub.height == 0 {
             continue;
         }
         let Some(p) = band.plane_in_pass(n) else {
-            // Nothing of this band is coded in this pass (every bit is known already, or
-            // the plane is above any coefficient's): it covers none of its children.
-            for y in 0..sub.height {
-                let row = grid.bit(sub.x0, sub.y0 + y);
-                for chunk in (0..sub.width).step_by(64) {
-                    deposit_bits(
-                        &mut grid.zt_bits,
-                        row + chunk,
-                        (sub.width - chunk).min(64),
-                        0,
-                    );
-                }
-            }
+            clear_coverage(grid, sub);
             continue;
         };
-        let parent = band.parent.and_then(|pb| {
-            let ps = layout.bands[pb].sub;
-            Some(ParentBand {
-                x0: ps.x0,
-                y0: ps.y0,
-                width: ps.width,
-                height: ps.height,
-                halve: band.halve,
-                plane: layout.bands[pb].plane_in_pass(n)?,
-            })
-        });
-        let has_children = band.has_children;
-        let choice = contexts.choice;
-        let class = band.class * choice.subband_class as usize;
-
-        let orientation = band.orientation;
+        let parent = parent_band(layout, band, n);
         for y in 0..sub.height {
             let gy = sub.y0 + y;
             let row_f = grid.at(sub.x0, gy);
             let row_i = gy * w + sub.x0;
             let row_bit = grid.bit(sub.x0, gy);
             let row_interior = (1..h - 1).contains(&gy);
-            // Bit index of the parent row's first coefficient, if the row has parents.
-            let parent_row = parent.as_ref().and_then(|pb| {
-                let py = if pb.halve { y / 2 } else { y };
-                (py < pb.height).then(|| ParentRow {
-                    bit: grid.bit(pb.x0, pb.y0 + py),
-                    flag: grid.at(pb.x0, pb.y0 + py),
-                    index: (pb.y0 + py) * w + pb.x0,
-                    width: pb.width,
-                    halve: pb.halve,
-                    plane: pb.plane,
-                })
-            });
+            let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
@@ -420,13 +516,14 @@ fn scan_pass<S: Side>(
                     }
                     _ => 0,
                 };
-                let live = if len < 64 {
-                    (1u64 << len) - 1
-                } else {
-                    u64::MAX
-                };
+                let live = ones(len);
                 let covered = covered & live;
                 let significant = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                let visited = if grid.prop_bits.is_empty() {
+                    0
+                } else {
+                    extract_bits(&grid.prop_bits, row_bit + chunk, len)
+                };
                 let mut todo = live & !covered & !significant;
                 // Significant coefficients pass their parent's zerotree on; new roots
                 // are added below.
@@ -435,46 +532,64 @@ fn scan_pass<S: Side>(
                     let k = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
                     let x = chunk + k;
-                    let fi = row_f + x;
-                    let i = row_i + x;
                     let at = At {
-                        flag: fi,
-                        index: i,
+                        flag: row_f + x,
+                        index: row_i + x,
                         x,
                         interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
                     };
-                    let (ctx, zctx) =
-                        dominant_contexts(contexts, grid, side, at, class, p, parent_row);
-                    let is_significant = side.significance(i, p, &mut contexts.significance[ctx]);
+                    let zctx = if visited >> k & 1 != 0 {
+                        if !band.has_children {
+                            continue;
+                        }
+                        let class = band.class * contexts.choice.subband_class as usize;
+                        dominant_contexts(contexts, grid, side, at, class, p, parent_row).1
+                    } else {
+                        let coded = code_significance(
+                            grid,
+                            contexts,
+                            side,
+                            at,
+                            band,
+                            b,
+                            p,
+                            parent_row,
+                            row_bit + x,
+                        );
+                        match coded {
+                            None => {
+                                deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                                return ScanEnd::Stopped;
+                            }
+                            Some((true, _)) => continue,
+                            Some((false, _)) if !band.has_children => continue,
+                            Some((false, zctx)) => zctx,
+                        }
+                    };
+                    let root = side.zerotree_root(at.index, n, &mut contexts.zerotree[zctx]);
                     if side.stopped() {
                         deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
-                    if is_significant {
-                        let sctx = sign_context(contexts, grid, side, at, orientation, parent_row);
-                        let negative = side.sign(i, &mut contexts.sign[sctx]);
-                        if side.stopped() {
-                            deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
-                            return ScanEnd::Stopped;
-                        }
-                        side.commit_significant(i, b, p, negative);
-                        grid.flags[fi] = SIG | NEW | ((p as u8) << PLANE_SHIFT);
-                        let bit = row_bit + x;
-                        grid.sig_bits[bit / 64] |= 1 << (bit % 64);
-                    } else if has_children {
-                        let root = side.zerotree_root(i, n, &mut contexts.zerotree[zctx]);
-                        if side.stopped() {
-                            deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
-                            return ScanEnd::Stopped;
-                        }
-                        roots |= (root as u64) << k;
-                    }
+                    roots |= (root as u64) << k;
                 }
                 deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
             }
         }
     }
-    // Subordinate scan: the significant coefficients, in the same order.
+    ScanEnd::Finished
+}
+
+/// The subordinate scan of pass `n`: every coefficient significant before this pass
+/// gets its bit at this plane, in the dominant scan's order.
+fn subordinate_scan<S: Side>(
+    layout: &CoefficientLayout,
+    grid: &mut FlagGrid,
+    contexts: &mut Contexts,
+    side: &mut S,
+    n: u32,
+) -> ScanEnd {
+    let (w, h) = (layout.width, layout.height);
     for (b, band) in layout.bands.iter().enumerate() {
         let Some(p) = band.plane_in_pass(n) else {
             continue;
@@ -494,12 +609,12 @@ fn scan_pass<S: Side>(
                     todo &= todo - 1;
                     let fi = row_f + x;
                     let f = grid.flags[fi];
-                    if f & NEW != 0 {
-                        grid.flags[fi] = f & !NEW;
+                    let i = row_i + x;
+                    // Significant since this pass: no refinement bit yet.
+                    if u32::from(f >> PLANE_SHIFT) == p {
                         continue;
                     }
                     let choice = contexts.choice;
-                    let i = row_i + x;
                     // Age: 0 = first refinement (significant since the previous pass),
                     // 1 = second, 2 = older.
                     let age = match side.known_above(i, p) {
@@ -818,7 +933,7 @@ fn run_encoder<'a, B: BitSink>(
     top: Option<u32>,
     contexts: &mut Contexts,
 ) -> (EncoderSide<'a, B>, Vec<PassRecord>, bool) {
-    let mut grid = FlagGrid::new(layout.width, layout.height);
+    let mut grid = FlagGrid::new(layout, contexts.coder);
     let mut passes = Vec::new();
     let mut complete = true;
     if let Some(top) = top {
@@ -988,7 +1103,7 @@ impl Decoder {
             source,
             values: vec![0; n_coefficients],
         };
-        let mut grid = FlagGrid::new(layout.width, layout.height);
+        let mut grid = FlagGrid::new(layout, coder);
         let mut contexts = Contexts::new(coder, ContextChoice::ALL);
         let mut passes_completed = 0;
         let mut complete = true;
@@ -1151,6 +1266,52 @@ mod tests {
             let c = pseudo_random(w * h, (w * 31 + h) as u64, 5000);
             round_trip(w, h, levels, &c, |_| 0);
             round_trip(w, h, levels, &c, |s| s.level);
+        }
+    }
+
+    /// The complete stream of `coefficients` coded by `coder`, and its top plane.
+    fn encode_with(
+        layout: &CoefficientLayout,
+        coefficients: &[i32],
+        coder: Coder,
+    ) -> (Vec<u8>, Option<u32>) {
+        let descendants = descendant_masks(layout, coefficients);
+        let weights = vec![0.0; layout.bands.len()];
+        let side = measuring_side(
+            ArithmeticEncoder::new(),
+            coefficients,
+            &descendants,
+            &weights,
+        );
+        let mut contexts = Contexts::new(coder, ContextChoice::ALL);
+        let top = top_plane(layout, coefficients);
+        let (side, _, _) = run_encoder(layout, side, top, &mut contexts);
+        (side.sink.finish(), top)
+    }
+
+    #[test]
+    fn every_coder_round_trips_and_coders_3_and_4_agree_at_pass_ends() {
+        let (w, h, levels) = (45, 38, 3);
+        let c = pseudo_random(w * h, 11, 6000);
+        let layout = layout_for(w, h, levels, |s| s.level);
+        let decode = |coder, bytes: &[u8], top, passes| {
+            Decoder::run(&layout, coder, bytes, true, top, passes).integer_coefficients()
+        };
+        let mut streams = Vec::new();
+        for coder in [Coder::V1, Coder::V2, Coder::V3, Coder::V4] {
+            let (bytes, top) = encode_with(&layout, &c, coder);
+            assert_eq!(decode(coder, &bytes, top, None), c, "{coder:?}");
+            streams.push((bytes, top));
+        }
+        let ((v3, top), (v4, _)) = (&streams[2], &streams[3]);
+        assert_ne!(v3, v4, "the propagation scan reorders decisions");
+        // A complete pass carries the same information in either order.
+        for passes in 1..=top.unwrap() + 1 {
+            assert_eq!(
+                decode(Coder::V3, v3, *top, Some(passes)),
+                decode(Coder::V4, v4, *top, Some(passes)),
+                "after {passes} passes"
+            );
         }
     }
 

@@ -82,13 +82,19 @@ fn v2_nodata_and_georeferencing_survive() {
     assert!(nan.raster.nodata.is_some_and(f64::is_nan));
 }
 
-/// Files of coder 2 (before its models started trained, commit 4cea2bc), made from the
-/// decoded `i16_nodata_georef_lossless` fixture: lossless, and 9/7 cut at 200 bytes.
+/// Files of coder 2 (before its models started trained, commit 4cea2bc) and of coder 3
+/// (before the propagation scan, commit 8f9cbe0), made from the decoded
+/// `i16_nodata_georef_lossless` fixture: lossless, and 9/7 cut at about 200 bytes.
 #[test]
-fn coder_2_fixtures_decode_to_their_recorded_samples() {
-    for name in ["coder2_i16_lossless", "coder2_i16_97_200_bytes"] {
+fn coder_2_and_3_fixtures_decode_to_their_recorded_samples() {
+    for (name, coder) in [
+        ("coder2_i16_lossless", Coder::V2),
+        ("coder2_i16_97_200_bytes", Coder::V2),
+        ("coder3_i16_lossless", Coder::V3),
+        ("coder3_i16_97_199_bytes", Coder::V3),
+    ] {
         let decoded = decode(&fixture(&format!("{name}.ezw")), &DecodeOptions::default()).unwrap();
-        assert_eq!(decoded.header.coder, Coder::V2, "{name} coder");
+        assert_eq!(decoded.header.coder, coder, "{name} coder");
         assert!(decoded.damage.is_none(), "{name} damage");
         assert_eq!(
             raw(&decoded.raster.samples),
@@ -100,18 +106,22 @@ fn coder_2_fixtures_decode_to_their_recorded_samples() {
         fixture("coder2_i16_lossless.decoded"),
         fixture("i16_nodata_georef_lossless.decoded")
     );
+    assert_eq!(
+        fixture("coder3_i16_lossless.decoded"),
+        fixture("i16_nodata_georef_lossless.decoded")
+    );
 }
 
 #[test]
-fn new_files_say_coder_3_and_decode_exactly() {
+fn new_files_say_coder_4_and_decode_exactly() {
     let file = fixture("i16_nodata_georef_lossless.ezw");
     let old = decode(&file, &DecodeOptions::default()).unwrap();
     let options = wavemesh_codec::EncodeOptions::new(wavemesh_codec::Quality::Lossless, None);
     let new = wavemesh_codec::encode(&old.raster, &options).unwrap();
     let redecoded = decode(&new.bytes, &DecodeOptions::default()).unwrap();
-    assert_eq!(redecoded.header.coder, Coder::V3);
+    assert_eq!(redecoded.header.coder, Coder::V4);
     assert_eq!(redecoded.raster, old.raster);
-    assert_ne!(new.bytes, file, "coder 3 makes other bytes");
+    assert_ne!(new.bytes, file, "coder 4 makes other bytes");
 }
 
 /// Tiled files written before tiles overlapped (commit 0603092: no overlap field, flag 9

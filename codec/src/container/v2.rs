@@ -34,6 +34,9 @@ const CODER_2_BIT: u8 = 7;
 /// Bit of the levels byte that says coder 2's models start from the trained
 /// probabilities: [`Coder::V3`] (levels never need more than 6 bits).
 const PRIMED_BIT: u8 = 1 << 6;
+/// Bit of the levels byte that says each pass starts with the propagation scan:
+/// [`Coder::V4`] (needs [`PRIMED_BIT`]).
+const PROPAGATION_BIT: u8 = 1 << 7;
 
 /// Georeferencing flag bits.
 const NORTH_UP: u8 = 1;
@@ -65,12 +68,7 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
             | header.wavelet.code() << 3
             | header.mode.code() << 5
             | u8::from(header.coder != Coder::V1) << CODER_2_BIT,
-        header.levels
-            | if header.coder == Coder::V3 {
-                PRIMED_BIT
-            } else {
-                0
-            },
+        header.levels | levels_coder_bits(header.coder),
     ]);
     write_number(&mut body, header.mapping.offset);
     // The sample step means something to 5/3 streams only, the coefficient step to 9/7.
@@ -237,14 +235,14 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         data: &[
             kinds & 7,
             kinds >> 3 & 3,
-            levels_byte & !PRIMED_BIT,
+            levels_byte & !(PRIMED_BIT | PROPAGATION_BIT),
             kinds >> 5 & 3,
         ],
         pos: 0,
     };
     let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
     if flags & flag::TILED != 0 {
-        if coder == Coder::V3 {
+        if matches!(coder, Coder::V3 | Coder::V4) {
             return Err(CodecError::InvalidHeader(
                 "a tiled header with the primed-models bit".into(),
             ));
@@ -358,14 +356,33 @@ fn read_gis(r: &mut Reader, flags: u64) -> Result<(Option<Georef>, Metadata), Co
     Ok((georef, metadata))
 }
 
-/// The coder the `kinds` and levels bytes name; the primed bit needs coder 2's.
+/// The bits of the levels byte that name `coder`.
+fn levels_coder_bits(coder: Coder) -> u8 {
+    match coder {
+        Coder::V1 | Coder::V2 => 0,
+        Coder::V3 => PRIMED_BIT,
+        Coder::V4 => PRIMED_BIT | PROPAGATION_BIT,
+    }
+}
+
+/// The coder the `kinds` and levels bytes name; the primed bit needs coder 2's, the
+/// propagation bit the primed one.
 fn read_coder(kinds: u8, levels_byte: u8) -> Result<Coder, CodecError> {
-    match (kinds >> CODER_2_BIT != 0, levels_byte & PRIMED_BIT != 0) {
-        (false, false) => Ok(Coder::V1),
-        (true, false) => Ok(Coder::V2),
-        (true, true) => Ok(Coder::V3),
-        (false, true) => Err(CodecError::InvalidHeader(
+    let primed = levels_byte & PRIMED_BIT != 0;
+    match (
+        kinds >> CODER_2_BIT != 0,
+        primed,
+        levels_byte & PROPAGATION_BIT != 0,
+    ) {
+        (false, false, false) => Ok(Coder::V1),
+        (true, false, false) => Ok(Coder::V2),
+        (true, true, false) => Ok(Coder::V3),
+        (true, true, true) => Ok(Coder::V4),
+        (false, true, _) => Err(CodecError::InvalidHeader(
             "primed models without coder 2".into(),
+        )),
+        (_, false, true) => Err(CodecError::InvalidHeader(
+            "the propagation scan without primed models".into(),
         )),
     }
 }
@@ -753,11 +770,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn primed_models_need_coder_2() {
+    fn primed_models_need_coder_2_and_propagation_needs_them() {
         let coder_2 = 1 << CODER_2_BIT;
         assert_eq!(read_coder(0, 6).unwrap(), Coder::V1);
         assert_eq!(read_coder(coder_2, 6).unwrap(), Coder::V2);
         assert_eq!(read_coder(coder_2, PRIMED_BIT | 6).unwrap(), Coder::V3);
+        let both = PRIMED_BIT | PROPAGATION_BIT | 6;
+        assert_eq!(read_coder(coder_2, both).unwrap(), Coder::V4);
         assert!(read_coder(0, PRIMED_BIT | 6).is_err());
+        assert!(read_coder(0, both).is_err());
+        assert!(read_coder(coder_2, PROPAGATION_BIT | 6).is_err());
+        for coder in [Coder::V1, Coder::V2, Coder::V3, Coder::V4] {
+            let kinds = u8::from(coder != Coder::V1) << CODER_2_BIT;
+            assert_eq!(
+                read_coder(kinds, levels_coder_bits(coder) | 6).unwrap(),
+                coder
+            );
+        }
     }
 }

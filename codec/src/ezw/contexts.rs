@@ -49,9 +49,19 @@ pub enum Coder {
     /// Models chosen by the known *magnitudes* of the 8 neighbours and the parent.
     V2,
     /// Coder 2's models, each starting from a trained probability instead of ½ (see
-    /// `ezw/priors.rs`): what every new stream is coded with.
-    #[default]
+    /// `ezw/priors.rs`).
     V3,
+    /// Coder 3's models with a propagation scan first in every pass (see
+    /// `ezw/propagation.rs`): what every new stream is coded with.
+    #[default]
+    V4,
+}
+
+impl Coder {
+    /// Whether each pass starts with the propagation scan.
+    pub(crate) fn propagates(self) -> bool {
+        self == Coder::V4
+    }
 }
 
 /// The adaptive models, grouped by decision.
@@ -86,7 +96,7 @@ impl Contexts {
     pub fn new(coder: Coder, choice: ContextChoice) -> Self {
         let (activity, busy) = match coder {
             Coder::V1 => (3 * 2 * 2, 2),
-            Coder::V2 | Coder::V3 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
+            Coder::V2 | Coder::V3 | Coder::V4 => (ACTIVITY_LEVELS * PARENT_LEVELS, 4),
         };
         Contexts {
             coder,
@@ -135,7 +145,7 @@ pub(super) fn sign_context<S: Side>(
     let up = state(fi - s, i.wrapping_sub(w));
     match contexts.coder {
         Coder::V1 => (orientation * 3 + left * signs) * 3 + up * signs,
-        Coder::V2 | Coder::V3 => {
+        Coder::V2 | Coder::V3 | Coder::V4 => {
             let balance = |a: usize, b: usize| {
                 let v = SIGN_VALUE[a] + SIGN_VALUE[b];
                 (v.signum() + 1) as usize
@@ -211,7 +221,7 @@ pub(super) fn dominant_contexts<S: Side>(
                 (class * 3 + hv) * 2 + parent_sig,
             )
         }
-        Coder::V2 | Coder::V3 => {
+        Coder::V2 | Coder::V3 | Coder::V4 => {
             let activity = if choice.neighbours {
                 log_level(neighbour_sum(grid, side.known(), at) >> p, ACTIVITY_LEVELS)
             } else {
@@ -280,7 +290,7 @@ pub(super) fn refinement_context(
             ((hv + diag > 1) as usize, 2)
         }
         // Coder 2: the neighbours' known magnitudes at plane `p`.
-        Coder::V2 | Coder::V3 => {
+        Coder::V2 | Coder::V3 | Coder::V4 => {
             let level = match neighbour_sum(grid, known, at) >> p {
                 0 => 0,
                 1..16 => 1,

@@ -26,7 +26,7 @@ include!("prior_tables.rs");
 /// Coder 3's models, each at its trained starting probability.
 pub(super) fn primed(coder: Coder, group: usize, len: usize) -> Vec<BitModel> {
     match coder {
-        Coder::V3 => {
+        Coder::V3 | Coder::V4 => {
             assert_eq!(TABLES[group].len(), len, "prior table {group} size");
             TABLES[group]
                 .iter()

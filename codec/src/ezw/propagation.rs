@@ -1,0 +1,147 @@
+//! The propagation scan of coder 4: within each pass, before the dominant scan, the
+//! insignificant coefficients with a significant parent and a significant neighbour in
+//! their band get their significance decision first.
+//!
+//! They are the ones most likely to become significant in this plane (EBCOT's
+//! significance-propagation pass does the same with neighbours alone), so a prefix cut
+//! anywhere inside the pass holds more of the plane's distortion reduction per byte.
+//! The dominant scan then skips their significance decision and codes only the zerotree
+//! one, so a complete pass carries the same information as coder 3's. The parent
+//! condition keeps out coefficients that a zerotree root would cover for free: with
+//! neighbours alone, complete streams grew by 0.4–1.0 % and prefixes lost up to 0.35 dB
+//! where they now lose at most 0.01.
+
+use super::contexts::At;
+use super::{
+    code_significance, deposit_bits, extract_bits, ones, parent_band, parent_row,
+    CoefficientLayout, Contexts, FlagGrid, ScanEnd, Side,
+};
+
+/// Runs the propagation scan of pass `n`: bands coarse to fine, each in raster order,
+/// 64 coefficients of a row at a time. A coefficient that becomes significant makes its
+/// right-hand neighbour in the same chunk a candidate at once; the rows below see it
+/// through the bitmaps.
+pub(super) fn scan<S: Side>(
+    layout: &CoefficientLayout,
+    grid: &mut FlagGrid,
+    contexts: &mut Contexts,
+    side: &mut S,
+    n: u32,
+) -> ScanEnd {
+    let (w, h) = (layout.width, layout.height);
+    for (b, band) in layout.bands.iter().enumerate() {
+        let sub = band.sub;
+        let Some(p) = band.plane_in_pass(n) else {
+            continue;
+        };
+        let parent = parent_band(layout, band, n);
+        // No coefficient of the band has a significant neighbour.
+        if grid.significant_in_band[b] == 0 {
+            continue;
+        }
+        for y in 0..sub.height {
+            let gy = sub.y0 + y;
+            let row_f = grid.at(sub.x0, gy);
+            let row_i = gy * w + sub.x0;
+            let row_bit = grid.bit(sub.x0, gy);
+            let row_interior = (1..h - 1).contains(&gy);
+            let parent_row = parent_row(grid, parent.as_ref(), y, w);
+            for chunk in (0..sub.width).step_by(64) {
+                let len = (sub.width - chunk).min(64);
+                let live = ones(len);
+                let significant = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                let near = significant_near(grid, sub, y, chunk, len) & !significant;
+                if near == 0 {
+                    continue;
+                }
+                let parent_significant = parent_significant(grid, parent_row, chunk, len);
+                let mut todo = near & parent_significant & live;
+                let mut visited = 0u64;
+                while todo != 0 {
+                    let k = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    visited |= 1 << k;
+                    let x = chunk + k;
+                    let at = At {
+                        flag: row_f + x,
+                        index: row_i + x,
+                        x,
+                        interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
+                    };
+                    let coded = code_significance(
+                        grid,
+                        contexts,
+                        side,
+                        at,
+                        band,
+                        b,
+                        p,
+                        parent_row,
+                        row_bit + x,
+                    );
+                    match coded {
+                        None => return ScanEnd::Stopped,
+                        Some((true, _)) => {
+                            // The right-hand neighbour now has a significant neighbour.
+                            todo |=
+                                (2u64 << k) & parent_significant & live & !significant & !visited;
+                        }
+                        Some((false, _)) => {}
+                    }
+                }
+                deposit_bits(&mut grid.prop_bits, row_bit + chunk, len, visited);
+            }
+        }
+    }
+    ScanEnd::Finished
+}
+
+/// The coefficients of columns `chunk .. chunk + len` whose parent is significant, or
+/// all of them when the row has no parents taking part in the pass (no zerotree can
+/// cover them then).
+fn parent_significant(
+    grid: &FlagGrid,
+    parent_row: Option<super::ParentRow>,
+    chunk: usize,
+    len: usize,
+) -> u64 {
+    match parent_row {
+        None => u64::MAX,
+        Some(pr) if pr.halve && chunk / 2 < pr.width => {
+            let plen = (pr.width - chunk / 2).min(32);
+            super::spread_bits(extract_bits(&grid.sig_bits, pr.bit + chunk / 2, plen) as u32)
+        }
+        Some(pr) if !pr.halve && chunk < pr.width => {
+            extract_bits(&grid.sig_bits, pr.bit + chunk, (pr.width - chunk).min(len))
+        }
+        _ => 0,
+    }
+}
+
+/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `sub` that have
+/// a significant neighbour (of the 8) inside the band.
+#[inline]
+fn significant_near(
+    grid: &FlagGrid,
+    sub: crate::wavelet::Subband,
+    y: usize,
+    chunk: usize,
+    len: usize,
+) -> u64 {
+    let bit_at = |x: usize, y: usize| {
+        let i = grid.bit(sub.x0 + x, sub.y0 + y);
+        grid.sig_bits[i / 64] >> (i % 64) & 1
+    };
+    let mut near = 0u64;
+    for ny in y.saturating_sub(1)..(y + 2).min(sub.height) {
+        let row = extract_bits(&grid.sig_bits, grid.bit(sub.x0 + chunk, sub.y0 + ny), len);
+        near |= row | row << 1 | row >> 1;
+        if chunk > 0 {
+            near |= bit_at(chunk - 1, ny);
+        }
+        if chunk + len < sub.width {
+            near |= bit_at(chunk + len, ny) << (len - 1);
+        }
+    }
+    near & ones(len)
+}
