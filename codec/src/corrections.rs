@@ -114,7 +114,7 @@ fn corrected_file(
     let Some(corrections) = corrections(raster, &decoded.raster, e, step) else {
         return Ok(None);
     };
-    let correction_bytes = encode_residuals(&corrections);
+    let correction_bytes = encode_residuals(&corrections, header.coder);
     header.correction_step = step;
     header.mode = Mode::MaxError;
     header.max_error = e;

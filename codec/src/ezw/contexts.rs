@@ -52,7 +52,8 @@ pub enum Coder {
     /// `ezw/priors.rs`).
     V3,
     /// Coder 3's models with a propagation scan first in every pass (see
-    /// `ezw/propagation.rs`): what every new stream is coded with.
+    /// `ezw/propagation.rs`), and residual lengths modelled on the previous one: what
+    /// every new stream is coded with.
     #[default]
     V4,
 }
@@ -60,6 +61,12 @@ pub enum Coder {
 impl Coder {
     /// Whether each pass starts with the propagation scan.
     pub(crate) fn propagates(self) -> bool {
+        self == Coder::V4
+    }
+
+    /// Whether float residuals and max-error corrections choose their length models by
+    /// the previous residual's length (see `residual.rs`).
+    pub(crate) fn models_residuals(self) -> bool {
         self == Coder::V4
     }
 }

@@ -295,13 +295,14 @@ fn apply_residual_section(
     match bytes {
         _ if header.residual_len == 0 => true,
         Some(bytes) if header.correction_step > 0.0 && sections.payload_check.complete => {
-            let mut corrections = decode_residuals(bytes, valid_count()).into_iter();
+            let mut corrections = decode_residuals(bytes, valid_count(), header.coder).into_iter();
             apply_corrections(samples, mask, header.correction_step, &mut corrections);
             true
         }
         Some(bytes) if ezw_complete => match samples {
             Samples::F32(floats) => {
-                let mut residuals = decode_residuals(bytes, valid_count()).into_iter();
+                let mut residuals =
+                    decode_residuals(bytes, valid_count(), header.coder).into_iter();
                 for (i, value) in floats.iter_mut().enumerate() {
                     if mask.is_none_or(|m| m[i]) {
                         let r = residuals.next().unwrap_or(0);

@@ -221,7 +221,7 @@ fn residual_section(residuals: &[i32]) -> Vec<u8> {
     if residuals.is_empty() {
         Vec::new()
     } else {
-        encode_residuals(residuals)
+        encode_residuals(residuals, ezw::Coder::default())
     }
 }
 
