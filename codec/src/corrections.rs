@@ -32,11 +32,7 @@ pub(crate) fn encode_with_corrections(
     let Ok((stream, parts)) = encode_stream(raster, &options) else {
         return Ok(None);
     };
-    let step = if raster.sample_type().is_integer() {
-        2.0 * e.floor() + 1.0
-    } else {
-        2.0 * e * 0.999
-    };
+    let step = correction_step(raster.sample_type(), e);
     let payload = &parts.payload;
     let mut best: Option<Encoded> = None;
     let mut tried: Vec<(usize, usize)> = Vec::new();
@@ -91,6 +87,16 @@ fn search_cut(
         }
     }
     Ok(())
+}
+
+/// The step of the corrections for the bound `e`: `2⌊e⌋ + 1` for integers, just under
+/// `2e` for floats.
+pub(crate) fn correction_step(sample_type: SampleType, e: f64) -> f64 {
+    if sample_type.is_integer() {
+        2.0 * e.floor() + 1.0
+    } else {
+        2.0 * e * 0.999
+    }
 }
 
 /// The file made of `stream`'s header and `mask`, `payload` (a prefix of `stream`'s),

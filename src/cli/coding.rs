@@ -789,8 +789,12 @@ impl RasterReport {
         );
     }
 
-    /// The valid range, as the text reports show it.
+    /// The valid range, as the text reports show it (a stream keeps it in its ladder,
+    /// which a cut file may lack).
     pub(super) fn values(&self) -> String {
+        if self.valid_min.is_nan() {
+            return "range unknown (not in this prefix)".into();
+        }
         format!("{} .. {}", self.valid_min, self.valid_max)
     }
 
