@@ -8,7 +8,7 @@ use bitvec::slice::BitSlice;
 
 use crate::container::{self, Mode};
 use crate::error::CodecError;
-use crate::pipeline::{decode, encode_stream, DecodeOptions, EncodeOptions, Encoded, Quality};
+use crate::pipeline::{decode, encode_stream, DecodeOptions, EncodeOptions, Encoded};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::encode_residuals;
 use crate::wavelet::Wavelet;
@@ -21,14 +21,11 @@ pub(crate) fn encode_with_corrections(
     e: f64,
     limit: usize,
 ) -> Result<Option<Encoded>, CodecError> {
-    let options = EncodeOptions {
-        wavelet: Wavelet::Cdf97,
-        levels,
-        quality: Quality::Lossless,
-        budget_bytes: Some(limit as u64),
-        tile_size: None,
-        threads: 1,
-    };
+    let options = EncodeOptions::budget(limit as u64)
+        .with_wavelet(Wavelet::Cdf97)
+        .with_levels(levels)
+        .with_tile_size(None)
+        .with_threads(1);
     let Ok((stream, parts)) = encode_stream(raster, &options) else {
         return Ok(None);
     };

@@ -45,10 +45,7 @@ fn every_v2_fixture_decodes_to_its_recorded_samples() {
 #[test]
 fn a_v2_prefix_decodes_to_its_recorded_samples() {
     let file = fixture("i16_nodata_georef_lossless.ezw");
-    let options = DecodeOptions {
-        max_bytes: Some(300),
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_max_bytes(Some(300));
     let decoded = decode(&file, &options).unwrap();
     assert!(!decoded.complete);
     assert_eq!(
@@ -130,10 +127,7 @@ fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
         ("tiled_i16_97_2bpp", None, "tiled_i16_97_2bpp"),
     ] {
         let file = fixture(&format!("{name}.ezw"));
-        let options = DecodeOptions {
-            max_bytes: budget,
-            ..DecodeOptions::default()
-        };
+        let options = DecodeOptions::default().with_max_bytes(budget);
         let out = decode(&file, &options).unwrap();
         let tiling = out.header.tiling.expect("a tiled file");
         assert_eq!(
