@@ -1065,6 +1065,26 @@ mod tests {
     }
 
     #[test]
+    fn an_f32_offset_and_step_are_stored_as_two_f32s() {
+        let mut h = sample_header();
+        (h.sample_type, h.wavelet) = (SampleType::F32, Wavelet::Cdf97);
+        h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
+        // f32s with long mantissas (no short decimal): 5 bytes each as numbers.
+        h.mapping.offset = f64::from(f32::from_bits(0x449A_5123));
+        h.coefficient_step = f64::from(f32::from_bits(0x3698_7654));
+        let (bytes, f32_len) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+        let (parsed, _) = Header::parse(&bytes).unwrap();
+        assert_eq!(parsed.mapping.offset, h.mapping.offset);
+        assert_eq!(parsed.coefficient_step, h.coefficient_step);
+        // A step that is no f32 goes as a number (9 bytes), and so does the offset (2).
+        h.mapping.offset = 1234.0;
+        h.coefficient_step = 0.1 + 0.2;
+        let (bytes, numbers_len) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+        assert_eq!(numbers_len, f32_len + 3);
+        assert_eq!(Header::parse(&bytes).unwrap().0.coefficient_step, 0.1 + 0.2);
+    }
+
+    #[test]
     fn v2_numbers_keep_every_bit() {
         let mut h = sample_header();
         for v in [

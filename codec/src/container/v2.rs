@@ -28,7 +28,8 @@ mod flag {
     pub const OVERLAP: u64 = 1 << 9;
     pub const RANGE_IN_LADDER: u64 = 1 << 10;
     pub const CORRECTION_STEP_IMPLIED: u64 = 1 << 11;
-    pub const ALL: u64 = (1 << 12) - 1;
+    pub const F32_MAPPING: u64 = 1 << 12;
+    pub const ALL: u64 = (1 << 13) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -75,15 +76,7 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
                 0
             },
     ]);
-    write_number(&mut body, header.mapping.offset);
-    // The sample step means something to 5/3 streams only, the coefficient step to 9/7.
-    write_number(
-        &mut body,
-        match header.wavelet {
-            Wavelet::Int53 => header.mapping.step,
-            Wavelet::Cdf97 => header.coefficient_step,
-        },
-    );
+    write_mapping(&mut body, header);
     write_values(&mut body, header, false);
     body.push(header.top_plane.map_or(0xFF, |p| p));
     if bands_listed(header) {
@@ -110,6 +103,41 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     );
     write_gis(&mut body, header);
     finish(body)
+}
+
+/// The offset and the step: the sample step means something to 5/3 streams only, the
+/// coefficient step to 9/7. Two numbers, or (flag 12) two f32s when both are f32s that
+/// take more as numbers (a float raster's mean and a 9/7 step: 8 bytes instead of 10).
+fn write_mapping(body: &mut Vec<u8>, header: &Header) {
+    let (offset, step) = mapping_pair(header);
+    if f32_mapping(header) {
+        for v in [offset, step] {
+            body.extend_from_slice(&(v as f32).to_bits().to_le_bytes());
+        }
+    } else {
+        write_number(body, offset);
+        write_number(body, step);
+    }
+}
+
+/// The offset and the step the header stores (see [`write_mapping`]).
+fn mapping_pair(header: &Header) -> (f64, f64) {
+    let step = match header.wavelet {
+        Wavelet::Int53 => header.mapping.step,
+        Wavelet::Cdf97 => header.coefficient_step,
+    };
+    (header.mapping.offset, step)
+}
+
+/// Whether the offset and step are stored as two f32s (flag 12): both are f32s and two
+/// numbers would take more than their 8 bytes.
+fn f32_mapping(header: &Header) -> bool {
+    let (offset, step) = mapping_pair(header);
+    let is_f32 = |v: f64| f64::from(v as f32).to_bits() == v.to_bits();
+    let mut numbers = Vec::new();
+    write_number(&mut numbers, offset);
+    write_number(&mut numbers, step);
+    header.tiling.is_none() && is_f32(offset) && is_f32(step) && numbers.len() > 8
 }
 
 /// Serialises the header of a tiled file: the raster's description, the tile size and
@@ -197,6 +225,7 @@ fn flags(header: &Header) -> u64 {
         (!single, flag::TILED),
         (header.tiling.is_some_and(|t| t.overlap > 0), flag::OVERLAP),
         (single, flag::RANGE_IN_LADDER),
+        (f32_mapping(header), flag::F32_MAPPING),
         (
             single && has_residual(header) && correction_step_implied(header),
             flag::CORRECTION_STEP_IMPLIED,
@@ -294,10 +323,15 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
             "a tile overlap in a single stream".into(),
         ));
     }
-    let offset = r.number()?;
+    let (offset, stored_step) = if flags & flag::F32_MAPPING != 0 {
+        let mut f32_value = || Ok::<_, CodecError>(f64::from(f32::from_bits(r.u32()?)));
+        (f32_value()?, f32_value()?)
+    } else {
+        (r.number()?, r.number()?)
+    };
     let (step, coefficient_step) = match wavelet {
-        Wavelet::Int53 => (r.number()?, 1.0),
-        Wavelet::Cdf97 => (1.0, r.number()?),
+        Wavelet::Int53 => (stored_step, 1.0),
+        Wavelet::Cdf97 => (1.0, stored_step),
     };
     let (max_error, (min, max), nodata) = read_values(r, flags, mode)?;
     let top_plane = match r.u8()? {
@@ -442,7 +476,8 @@ fn parse_tiled(
         | flag::MASK
         | flag::RESIDUAL
         | flag::RANGE_IN_LADDER
-        | flag::CORRECTION_STEP_IMPLIED;
+        | flag::CORRECTION_STEP_IMPLIED
+        | flag::F32_MAPPING;
     if flags & stream_only != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "flags {flags:#x} of a tiled file"

@@ -174,8 +174,9 @@ pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepa
     }
 }
 
-/// The mean of the valid samples rounded to a whole number (any offset works, and a
-/// whole one is the shortest to store) and the samples less it as f32, voids filled.
+/// The mean of the valid samples (a whole number for integers, an f32 for floats: any
+/// offset works, these are shorter to store) and the samples less it as f32, voids
+/// filled.
 fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
     let valid = mask.iter().filter(|&&m| m).count().max(1);
     let mean = (0..raster.len())
@@ -183,7 +184,11 @@ fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
         .map(|i| raster.samples.get_f64(i))
         .sum::<f64>()
         / valid as f64;
-    let mean = mean.round();
+    let mean = if raster.sample_type().is_integer() {
+        mean.round()
+    } else {
+        f64::from(mean as f32)
+    };
     let mut centred: Vec<f64> = (0..raster.len())
         .map(|i| {
             if mask[i] {
