@@ -128,10 +128,7 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
     )
     .expect("encode");
     let encode_seconds = start.elapsed().as_secs_f64();
-    let with_map = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let with_map = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&encoded.bytes, &with_map).expect("decode");
     assert!(decoded.complete, "{name}: complete decode");
     assert_eq!(&decoded.raster, raster, "{name}: lossless round trip");

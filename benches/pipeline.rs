@@ -66,20 +66,15 @@ fn bench_pipeline(c: &mut Criterion) {
 
         // 1 bit per sample for the whole file (header included).
         let budget = samples / 8;
-        let lossy_options = EncodeOptions {
-            wavelet: Wavelet::Cdf97,
-            ..EncodeOptions::new(Quality::Lossless, Some(budget))
-        };
+        let lossy_options =
+            EncodeOptions::new(Quality::Lossless, Some(budget)).with_wavelet(Wavelet::Cdf97);
         let lossy = encode(&raster, &lossy_options).expect("9/7 encode");
         assert!(
             lossy.bytes.len() as u64 <= budget,
             "{name}: 9/7 over budget"
         );
         // The first 0.25 bpp of the 9/7 file.
-        let prefix = DecodeOptions {
-            max_bytes: Some(samples / 32),
-            ..DecodeOptions::default()
-        };
+        let prefix = DecodeOptions::default().with_max_bytes(Some(samples / 32));
         decode(&lossy.bytes, &prefix).expect("prefix decode");
 
         eprintln!(

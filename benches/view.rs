@@ -106,10 +106,7 @@ fn bench_terrain(c: &mut Criterion, name: &str, raster: Raster) {
     )
     .expect("encodes");
     drop(raster);
-    let options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&stream.bytes, &options).expect("decodes");
     let surface = Surface::of(&decoded.raster);
     let map = decoded.significance.as_ref().expect("map");

@@ -8,9 +8,9 @@ use std::path::Path;
 use wavemesh_codec::ByteSource;
 
 /// A file read by ranges. What is read from the start of the file on (up to 16 MiB, as
-/// long as the reads continue one another) is kept, so the header and index, which every
-/// reader of a tiled file looks at first and again for each tile row, are read from
-/// disk once.
+/// long as the reads continue one another and stop short of the file's end) is kept, so
+/// the header and index, which every reader of a tiled file looks at first and again for
+/// each tile row, are read from disk once; a read of a whole stream is not kept twice.
 #[derive(Debug)]
 pub struct FileSource {
     file: File,
@@ -66,8 +66,10 @@ impl ByteSource for FileSource {
                 .take(end - cached_end)
                 .read_to_end(&mut out)?;
             self.bytes_read += read as u64;
-            // Reads that continue the kept start (the header, then the index) extend it.
-            if cached_end == kept && kept as usize + read <= HEAD_KEPT {
+            // Reads that continue the kept start (the header, then the index) extend it;
+            // one that runs to the end of the file (a whole stream) is the caller's to
+            // keep, not a second copy's.
+            if cached_end == kept && kept as usize + read <= HEAD_KEPT && end < self.len {
                 self.head.extend_from_slice(&out[before..]);
             }
         }

@@ -206,23 +206,17 @@ pub fn paper_table(
             .iter()
             .map(|&t| {
                 let plane = plane_of_threshold(t).min(top);
-                DecodeOptions {
-                    max_passes: Some(top - plane + 1),
-                    ..DecodeOptions::default()
-                }
+                DecodeOptions::default().with_max_passes(Some(top - plane + 1))
             })
             .collect(),
         TableRows::AllPasses => (0..=top)
-            .map(|k| DecodeOptions {
-                max_passes: Some(k + 1),
-                ..DecodeOptions::default()
-            })
+            .map(|k| DecodeOptions::default().with_max_passes(Some(k + 1)))
             .collect(),
         TableRows::BitRates(rates) => rates
             .iter()
-            .map(|&r| DecodeOptions {
-                max_bytes: Some((r * original.len() as f64 / 8.0).floor() as u64),
-                ..DecodeOptions::default()
+            .map(|&r| {
+                DecodeOptions::default()
+                    .with_max_bytes(Some((r * original.len() as f64 / 8.0).floor() as u64))
             })
             .collect(),
     };

@@ -205,10 +205,7 @@ fn zerotree(raster: &Raster, surface: &Surface, budget: Budget) -> Result<GridMe
         raster,
         &EncodeOptions::new(Quality::Lossless, None).single_stream(),
     )?;
-    let options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&encoded.bytes, &options)?;
     let map = decoded.significance.as_ref().expect("asked for");
     let mut mesher = Mesher::new(map, surface.heights(), &surface.valid);

@@ -276,10 +276,8 @@ pub fn measure(
                 .map_or(bpp, |actual| actual.max(bpp))
         };
         let psnr = |bytes: &[u8], rate: f64| -> Result<f64, ReportError> {
-            let prefix = DecodeOptions {
-                max_bytes: Some((rate * samples / 8.0) as u64),
-                ..DecodeOptions::default()
-            };
+            let prefix =
+                DecodeOptions::default().with_max_bytes(Some((rate * samples / 8.0) as u64));
             let decoded = decode(bytes, &prefix).map_err(|e| codec_err(e.to_string()))?;
             Ok(distortion(&decoded.raster)?.psnr_db)
         };
@@ -683,10 +681,7 @@ pub fn compare_meshes(
             &EncodeOptions::new(Quality::Lossless, None).single_stream(),
         )
         .map_err(codec)?;
-        let options = DecodeOptions {
-            significance_map: true,
-            ..DecodeOptions::default()
-        };
+        let options = DecodeOptions::default().with_significance_map(true);
         let decoded = decode(&encoded.bytes, &options).map_err(codec)?;
         let surface = Surface::of(&decoded.raster);
         let map = decoded.significance.as_ref().expect("asked for");

@@ -414,11 +414,9 @@ fn streaming_encode_by_blocks_gives_the_in_memory_bytes() {
     let out = scratch.path().join("out.ezw");
     for (quality, budget) in [(Quality::Lossless, None), (Quality::Lossless, Some(9000))] {
         for threads in [1, 2] {
-            let options = EncodeOptions {
-                tile_size: Some(128),
-                threads,
-                ..EncodeOptions::new(quality, budget)
-            };
+            let options = EncodeOptions::new(quality, budget)
+                .with_tile_size(Some(128))
+                .with_threads(threads);
             let memory = wavemesh_codec::encode(&raster, &options).unwrap().bytes;
             // Tiles of 117 x 111 (6 across): blocks of 1, 2 and 4 tiles, and whole rows.
             for (path, block_width) in [

@@ -247,10 +247,7 @@ fn make_seeds() {
         (
             "i16_53_200_bytes.ezw",
             &small,
-            EncodeOptions {
-                wavelet: Wavelet::Int53,
-                ..EncodeOptions::new(Quality::Lossless, Some(200))
-            },
+            EncodeOptions::new(Quality::Lossless, Some(200)).with_wavelet(Wavelet::Int53),
         ),
         ("i16_voids_lossless.ezw", &with_voids, lossless.clone()),
         (
@@ -291,10 +288,7 @@ fn make_seeds() {
         }
     }
     // Tiled files: small tiles (with their overlap), lossless, at a budget, with voids.
-    let tiled = |quality, budget| EncodeOptions {
-        tile_size: Some(8),
-        ..EncodeOptions::new(quality, budget)
-    };
+    let tiled = |quality, budget| EncodeOptions::new(quality, budget).with_tile_size(Some(8));
     let tiled_streams: Vec<(&str, &Raster, EncodeOptions)> = vec![
         (
             "tiled_i16_lossless.ezw",

@@ -159,11 +159,9 @@ fn decode_with_map(
     passes: Option<u32>,
 ) -> Decoded {
     let file = encode(raster, &EncodeOptions::new(quality, budget)).unwrap();
-    let options = DecodeOptions {
-        significance_map: true,
-        max_passes: passes,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default()
+        .with_significance_map(true)
+        .with_max_passes(passes);
     let decoded = decode(&file.bytes, &options).unwrap();
     let r = &decoded.raster;
     Decoded {

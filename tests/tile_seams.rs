@@ -53,9 +53,8 @@ fn tile_seams_on_shared_dems() {
         let path = dir.join(name).join(format!("{name}.tif"));
         let raster = read_dem(&path, &ReadOptions::default()).unwrap();
         let budget = (0.25 * raster.len() as f64 / 8.0) as u64;
-        let options = |tile: Option<u32>| EncodeOptions {
-            tile_size: tile,
-            ..EncodeOptions::new(Quality::Lossless, Some(budget))
+        let options = |tile: Option<u32>| {
+            EncodeOptions::new(Quality::Lossless, Some(budget)).with_tile_size(tile)
         };
         let tiled = encode(&raster, &options(Some(256))).unwrap();
         let whole = encode(&raster, &options(None)).unwrap();

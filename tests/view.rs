@@ -60,10 +60,7 @@ struct Decoded {
 
 fn decode_with_map(raster: &Raster) -> Decoded {
     let file = encode(raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
-    let options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&file.bytes, &options).unwrap();
     let r = &decoded.raster;
     Decoded {

@@ -114,10 +114,7 @@ fn blobs(surface: &Surface, share: f64, max_radius: f64) -> Raster {
 fn decode_with_map(raster: &Raster) -> (Surface, SignificanceMap) {
     let options = EncodeOptions::new(Quality::Lossless, None).single_stream();
     let file = encode(raster, &options).unwrap();
-    let with_map = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let with_map = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&file.bytes, &with_map).unwrap();
     (Surface::of(&decoded.raster), decoded.significance.unwrap())
 }

@@ -90,7 +90,9 @@ pub struct Header {
     pub coefficient_step: f64,
     /// Nodata value of the source (may be NaN), if it had one.
     pub nodata: Option<f64>,
-    /// Minimum and maximum valid sample value of the source.
+    /// Minimum and maximum valid sample value of the source. A single stream stores them
+    /// in its ladder section at the end of the file: NaN when a file cut short (or with
+    /// a damaged ladder) does not hold them.
     pub valid_range: (f64, f64),
     /// Global bit-plane of the first pass; `None` when every coefficient is zero.
     pub top_plane: Option<u8>,
@@ -237,8 +239,8 @@ impl Header {
             data: &data[..header_len - 4],
             pos: r.pos,
         };
-        let mut header = match version {
-            1 => v1::parse_fields(&mut r)?,
+        let (mut header, range_in_ladder) = match version {
+            1 => (v1::parse_fields(&mut r)?, false),
             _ => v2::parse_fields(&mut r)?,
         };
         if r.pos != r.data.len() {
@@ -285,8 +287,13 @@ impl Header {
             .and_then(|start| data.get(start..start.checked_add(ladder_len)?))
         {
             let ladder = unframe(framed, ladder_len);
-            if ladder.complete {
-                header.passes = parse_ladder(&ladder.bytes, header.top_plane).unwrap_or_default();
+            let parsed = ladder
+                .complete
+                .then(|| parse_ladder(&ladder.bytes, header.top_plane, range_in_ladder))
+                .flatten();
+            if let Some((range, passes)) = parsed {
+                header.passes = passes;
+                header.valid_range = range.unwrap_or(header.valid_range);
             }
         }
         Ok((header, header_len))
@@ -332,9 +339,15 @@ impl Header {
         }
     }
 
-    /// The rate–distortion ladder section that trails the file.
+    /// The section that trails a single stream: its valid range, then the
+    /// rate–distortion ladder.
     pub(crate) fn ladder_bytes(&self) -> Vec<u8> {
-        let mut out = vec![self.passes.len() as u8];
+        let mut out = Vec::new();
+        if self.tiling.is_none() {
+            number::write_number(&mut out, self.valid_range.0);
+            number::write_number(&mut out, self.valid_range.1);
+        }
+        out.push(self.passes.len() as u8);
         let mut previous_end = 0;
         for pass in &self.passes {
             write_varint(&mut out, pass.end_byte - previous_end);
@@ -725,11 +738,20 @@ pub(crate) fn write_varint(out: &mut Vec<u8>, mut value: u64) {
     out.push(value as u8);
 }
 
-/// Parses the ladder section; `None` if it is malformed (it carries no checksum).
-fn parse_ladder(bytes: &[u8], top_plane: Option<u8>) -> Option<Vec<PassRecord>> {
+/// The valid range of a ladder section that starts with it, and the passes.
+type Ladder = (Option<(f64, f64)>, Vec<PassRecord>);
+
+/// Parses the ladder section (starting with the valid range when `with_range`); `None`
+/// if it is malformed.
+fn parse_ladder(bytes: &[u8], top_plane: Option<u8>, with_range: bool) -> Option<Ladder> {
     let mut r = Reader {
         data: bytes,
         pos: 0,
+    };
+    let range = if with_range {
+        Some((r.number().ok()?, r.number().ok()?))
+    } else {
+        None
     };
     let count = r.u8().ok()? as usize;
     let top = top_plane.map_or(0, u32::from);
@@ -747,7 +769,7 @@ fn parse_ladder(bytes: &[u8], top_plane: Option<u8>) -> Option<Vec<PassRecord>> 
             squared_error,
         });
     }
-    (r.pos == bytes.len()).then_some(passes)
+    (r.pos == bytes.len()).then_some((range, passes))
 }
 
 /// Largest file the container describes (2^48 bytes, far beyond any DEM, and well inside
@@ -1008,6 +1030,61 @@ mod tests {
     }
 
     #[test]
+    fn the_valid_range_is_in_the_ladder_and_a_prefix_without_it_does_not_know_it() {
+        let mut h = sample_header();
+        let (bytes, header_len) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+        assert_eq!(
+            Header::parse(&bytes).unwrap().0.valid_range,
+            (236.0, 1076.0)
+        );
+        let (cut, _) = Header::parse(&bytes[..bytes.len() - 1]).unwrap();
+        assert!(cut.valid_range.0.is_nan() && cut.valid_range.1.is_nan());
+        assert!(cut.passes.is_empty());
+        // The range is not in the header: another range leaves it the same length.
+        h.valid_range = (-1e6, 1e6 + 0.25);
+        assert_eq!(assemble(&mut h, &[0], &[1, 2, 3], &[]).1, header_len);
+    }
+
+    #[test]
+    fn the_correction_step_of_a_max_error_stream_is_implied() {
+        for (sample_type, max_error, step) in
+            [(SampleType::U16, 2.5, 5.0), (SampleType::F32, 0.25, 0.4995)]
+        {
+            let mut h = sample_header();
+            (h.sample_type, h.mode, h.max_error) = (sample_type, Mode::MaxError, max_error);
+            h.correction_step = step;
+            let (bytes, implied_len) = assemble(&mut h, &[0], &[1, 2, 3], &[9, 9]);
+            let (parsed, _) = Header::parse(&bytes).unwrap();
+            assert_eq!(parsed.correction_step, step, "{sample_type:?}");
+            // Any other step is listed, and still read back.
+            h.correction_step = step * 1.5;
+            let (bytes, listed_len) = assemble(&mut h, &[0], &[1, 2, 3], &[9, 9]);
+            assert!(listed_len > implied_len, "{sample_type:?}");
+            assert_eq!(Header::parse(&bytes).unwrap().0.correction_step, step * 1.5);
+        }
+    }
+
+    #[test]
+    fn an_f32_offset_and_step_are_stored_as_two_f32s() {
+        let mut h = sample_header();
+        (h.sample_type, h.wavelet) = (SampleType::F32, Wavelet::Cdf97);
+        h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
+        // f32s with long mantissas (no short decimal): 5 bytes each as numbers.
+        h.mapping.offset = f64::from(f32::from_bits(0x449A_5123));
+        h.coefficient_step = f64::from(f32::from_bits(0x3698_7654));
+        let (bytes, f32_len) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+        let (parsed, _) = Header::parse(&bytes).unwrap();
+        assert_eq!(parsed.mapping.offset, h.mapping.offset);
+        assert_eq!(parsed.coefficient_step, h.coefficient_step);
+        // A step that is no f32 goes as a number (9 bytes), and so does the offset (2).
+        h.mapping.offset = 1234.0;
+        h.coefficient_step = 0.1 + 0.2;
+        let (bytes, numbers_len) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+        assert_eq!(numbers_len, f32_len + 3);
+        assert_eq!(Header::parse(&bytes).unwrap().0.coefficient_step, 0.1 + 0.2);
+    }
+
+    #[test]
     fn v2_numbers_keep_every_bit() {
         let mut h = sample_header();
         for v in [
@@ -1023,7 +1100,8 @@ mod tests {
         ] {
             h.nodata = Some(v);
             h.valid_range = (v, 3.0);
-            let (parsed, _) = Header::parse(&h.to_bytes()).unwrap();
+            let (bytes, _) = assemble(&mut h, &[0], &[1, 2, 3], &[]);
+            let (parsed, _) = Header::parse(&bytes).unwrap();
             assert_eq!(parsed.nodata.map(f64::to_bits), Some(v.to_bits()), "{v}");
             assert_eq!(parsed.valid_range.0.to_bits(), v.to_bits(), "{v}");
         }

@@ -8,7 +8,7 @@ use bitvec::slice::BitSlice;
 
 use crate::container::{self, Mode};
 use crate::error::CodecError;
-use crate::pipeline::{decode, encode_stream, DecodeOptions, EncodeOptions, Encoded, Quality};
+use crate::pipeline::{decode, encode_stream, DecodeOptions, EncodeOptions, Encoded};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::encode_residuals;
 use crate::wavelet::Wavelet;
@@ -21,22 +21,15 @@ pub(crate) fn encode_with_corrections(
     e: f64,
     limit: usize,
 ) -> Result<Option<Encoded>, CodecError> {
-    let options = EncodeOptions {
-        wavelet: Wavelet::Cdf97,
-        levels,
-        quality: Quality::Lossless,
-        budget_bytes: Some(limit as u64),
-        tile_size: None,
-        threads: 1,
-    };
+    let options = EncodeOptions::budget(limit as u64)
+        .with_wavelet(Wavelet::Cdf97)
+        .with_levels(levels)
+        .with_tile_size(None)
+        .with_threads(1);
     let Ok((stream, parts)) = encode_stream(raster, &options) else {
         return Ok(None);
     };
-    let step = if raster.sample_type().is_integer() {
-        2.0 * e.floor() + 1.0
-    } else {
-        2.0 * e * 0.999
-    };
+    let step = correction_step(raster.sample_type(), e);
     let payload = &parts.payload;
     let mut best: Option<Encoded> = None;
     let mut tried: Vec<(usize, usize)> = Vec::new();
@@ -91,6 +84,16 @@ fn search_cut(
         }
     }
     Ok(())
+}
+
+/// The step of the corrections for the bound `e`: `2⌊e⌋ + 1` for integers, just under
+/// `2e` for floats.
+pub(crate) fn correction_step(sample_type: SampleType, e: f64) -> f64 {
+    if sample_type.is_integer() {
+        2.0 * e.floor() + 1.0
+    } else {
+        2.0 * e * 0.999
+    }
 }
 
 /// The file made of `stream`'s header and `mask`, `payload` (a prefix of `stream`'s),

@@ -24,27 +24,18 @@ use crate::wavelet::{self, Wavelet};
 
 /// The decoder limits every harness uses: small enough that no input can make a fuzzer
 /// allocate gigabytes, large enough for any raster the harnesses encode.
-pub const FUZZ_LIMITS: Limits = Limits {
-    max_samples: 1 << 22,
-    max_memory: 1 << 28,
-};
+pub const FUZZ_LIMITS: Limits = Limits::new(1 << 22, 1 << 28);
 
 /// The tighter limits of [`decode_arbitrary`]: a few bytes can describe a large raster
 /// whose decode costs `planes × samples` work (a valid, tiny, all-zero stream), and the
 /// fuzzer drifts towards such inputs; 4096 samples (any aspect ratio, e.g. 4096 × 1) keep
 /// it near 10,000 executions a second. Larger rasters are refused before any allocation,
 /// which the harness checks too.
-pub const DECODE_FUZZ_LIMITS: Limits = Limits {
-    max_samples: 1 << 12,
-    max_memory: 1 << 20,
-};
+pub const DECODE_FUZZ_LIMITS: Limits = Limits::new(1 << 12, 1 << 20);
 
 /// Decode options with [`FUZZ_LIMITS`].
 fn fuzz_options() -> DecodeOptions {
-    DecodeOptions {
-        limits: FUZZ_LIMITS,
-        ..DecodeOptions::default()
-    }
+    DecodeOptions::default().with_limits(FUZZ_LIMITS)
 }
 
 /// Decodes arbitrary bytes as a `.ezw` file; must never panic.
@@ -60,22 +51,18 @@ fn fuzz_options() -> DecodeOptions {
 /// Any `Ok` result must hold a raster of the header's size and sample type.
 #[doc(hidden)]
 pub fn decode_arbitrary(data: &[u8]) {
-    let options = DecodeOptions {
-        limits: DECODE_FUZZ_LIMITS,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_limits(DECODE_FUZZ_LIMITS);
     check_decode(data, &options);
     let _ = container::verify(data);
     if let Some(repaired) = repair_checksums(data) {
         let _ = container::verify(&repaired);
         let last = data.last().copied().unwrap_or(0);
-        let options = DecodeOptions {
-            max_passes: (last & 0x10 != 0).then_some(u32::from(last & 0x0F)),
-            max_bytes: (last & 0x20 != 0)
-                .then(|| repaired.len() as u64 * u64::from(last & 0x0F) / 16),
-            strict: last & 0x40 != 0,
-            ..options
-        };
+        let options = options
+            .with_max_passes((last & 0x10 != 0).then_some(u32::from(last & 0x0F)))
+            .with_max_bytes(
+                (last & 0x20 != 0).then(|| repaired.len() as u64 * u64::from(last & 0x0F) / 16),
+            )
+            .with_strict(last & 0x40 != 0);
         check_decode(&repaired, &options);
     }
 }
@@ -373,10 +360,7 @@ fn check_prefix(
     if decoded.complete {
         check_guarantee(raster, decoded, options);
     }
-    let limited = DecodeOptions {
-        max_bytes: Some(cut as u64),
-        ..fuzz_options()
-    };
+    let limited = fuzz_options().with_max_bytes(Some(cut as u64));
     let same = decode(&encoded.bytes, &limited).expect("max_bytes decode of a decodable prefix");
     assert!(
         same_samples(&same.raster.samples, &decoded.raster.samples),
@@ -813,10 +797,7 @@ fn arbitrary_encode_options(input: &mut Input, raster: &Raster) -> (EncodeOption
         1 => EncodeOptions::new(Quality::MaxError(bound), None),
         2 => EncodeOptions::new(Quality::Precision(bound), None),
         3 => EncodeOptions::new(Quality::Lossless, Some(budget)),
-        4 => EncodeOptions {
-            wavelet: Wavelet::Int53,
-            ..EncodeOptions::new(Quality::Lossless, Some(budget))
-        },
+        4 => EncodeOptions::new(Quality::Lossless, Some(budget)).with_wavelet(Wavelet::Int53),
         // Any combination, including those the encoder must refuse.
         _ => {
             let quality = match (mode >> 3) % 3 {
@@ -824,18 +805,15 @@ fn arbitrary_encode_options(input: &mut Input, raster: &Raster) -> (EncodeOption
                 1 => Quality::MaxError(bound),
                 _ => Quality::Precision(bound),
             };
-            EncodeOptions {
-                wavelet: if mode & 0x40 != 0 {
-                    Wavelet::Cdf97
-                } else {
-                    Wavelet::Int53
-                },
-                levels: None,
-                quality,
-                budget_bytes: (mode & 0x80 != 0).then_some(budget),
-                tile_size: None,
-                threads: 1,
-            }
+            let wavelet = if mode & 0x40 != 0 {
+                Wavelet::Cdf97
+            } else {
+                Wavelet::Int53
+            };
+            EncodeOptions::new(quality, (mode & 0x80 != 0).then_some(budget))
+                .with_wavelet(wavelet)
+                .with_tile_size(None)
+                .with_threads(1)
         }
     };
     options.levels = levels;

@@ -5,13 +5,21 @@
 //! `.ezw` container. No file formats and no command line live here.
 //!
 //! ```
-//! use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
+//! use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Raster, Samples};
 //! let heights: Vec<i16> = (0..64 * 48).map(|i| ((i % 64) * 3 + (i / 64) * 2) as i16).collect();
 //! let raster = Raster::new(64, 48, Samples::I16(heights)).unwrap();
-//! let file = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+//! let file = encode(&raster, &EncodeOptions::lossless()).unwrap();
 //! let decoded = decode(&file.bytes, &DecodeOptions::default()).unwrap();
 //! assert_eq!(decoded.raster, raster);
+//! // Any prefix decodes: the first half of the file gives a coarser DEM.
+//! let half = DecodeOptions::default().with_max_bytes(Some(file.bytes.len() as u64 / 2));
+//! assert!(!decode(&file.bytes, &half).unwrap().complete);
 //! ```
+//!
+//! The option structs ([`EncodeOptions`], [`DecodeOptions`], [`Limits`]) are
+//! `#[non_exhaustive]`: make them with their constructors or `Default` and adjust them
+//! with their `with_…` setters (or by assigning a field), so new settings break no
+//! caller.
 //!
 //! ## What is public
 //!

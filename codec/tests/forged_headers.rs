@@ -20,10 +20,7 @@ fn encoded(tiled: bool) -> Vec<u8> {
         .collect();
     let mut raster = Raster::new(64, 48, Samples::I16(values)).unwrap();
     raster.nodata = Some(-9999.0);
-    let options = EncodeOptions {
-        tile_size: tiled.then_some(32),
-        ..EncodeOptions::new(Quality::Lossless, None)
-    };
+    let options = EncodeOptions::new(Quality::Lossless, None).with_tile_size(tiled.then_some(32));
     encode(&raster, &options).unwrap().bytes
 }
 

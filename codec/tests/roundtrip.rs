@@ -157,10 +157,7 @@ fn every_prefix_decodes_and_error_falls() {
     let raster = terrain(37, 29, SampleType::I16, 99, 3000.0);
     for options in [
         EncodeOptions::new(Quality::Lossless, None),
-        EncodeOptions {
-            wavelet: Wavelet::Cdf97,
-            ..EncodeOptions::new(Quality::Lossless, Some(4000))
-        },
+        EncodeOptions::new(Quality::Lossless, Some(4000)).with_wavelet(Wavelet::Cdf97),
     ] {
         let encoded = encode(&raster, &options).unwrap();
         let mut best = f64::INFINITY;
@@ -250,10 +247,7 @@ fn float_extremes_are_refused_or_round_trip() {
         let values: Vec<f32> = (0..64).map(|i| if i % 3 == 0 { a } else { b }).collect();
         let raster = Raster::new(8, 8, Samples::F32(values.clone())).unwrap();
         for wavelet in [Wavelet::Int53, Wavelet::Cdf97] {
-            let options = EncodeOptions {
-                wavelet,
-                ..EncodeOptions::new(Quality::Lossless, None)
-            };
+            let options = EncodeOptions::new(Quality::Lossless, None).with_wavelet(wavelet);
             let Ok(encoded) = encode(&raster, &options) else {
                 continue;
             };
@@ -361,10 +355,7 @@ fn every_bit_flip_after_the_header_is_detected_and_the_prefix_before_it_decodes(
                 damage.offset
             );
             assert!(!decoded.complete || damage.section == "ladder");
-            let strict = DecodeOptions {
-                strict: true,
-                ..DecodeOptions::default()
-            };
+            let strict = DecodeOptions::default().with_strict(true);
             assert!(decode(&damaged, &strict).is_err());
             flips += 1;
         }

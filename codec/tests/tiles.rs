@@ -22,11 +22,9 @@ fn terrain(width: usize, height: usize) -> Raster {
 }
 
 fn tiled(tile: u32, quality: Quality, budget: Option<u64>) -> EncodeOptions {
-    EncodeOptions {
-        tile_size: Some(tile),
-        threads: 1,
-        ..EncodeOptions::new(quality, budget)
-    }
+    EncodeOptions::new(quality, budget)
+        .with_tile_size(Some(tile))
+        .with_threads(1)
 }
 
 fn squared_error(a: &Raster, b: &Raster) -> f64 {
@@ -52,14 +50,7 @@ fn lossless_tiles_round_trip_bit_exactly_whatever_the_threads() {
         v[1000..1100].fill(-32768);
     }
     let one = encode(&raster, &tiled(64, Quality::Lossless, None)).unwrap();
-    let two = encode(
-        &raster,
-        &EncodeOptions {
-            threads: 2,
-            ..tiled(64, Quality::Lossless, None)
-        },
-    )
-    .unwrap();
+    let two = encode(&raster, &tiled(64, Quality::Lossless, None).with_threads(2)).unwrap();
     assert_eq!(one.bytes, two.bytes, "the bytes depend on the thread count");
     let tiling = one.header.tiling.expect("a tiled file");
     // 203 = 4 tiles of 51 (the last 50), 150 = 3 tiles of 50.
@@ -113,10 +104,7 @@ fn a_window_decodes_like_the_same_part_of_the_whole() {
         height: 40,
     };
     for budget in [None, Some(encoded.bytes.len() as u64 / 5)] {
-        let options = DecodeOptions {
-            max_bytes: budget,
-            ..DecodeOptions::default()
-        };
+        let options = DecodeOptions::default().with_max_bytes(budget);
         let all = decode(&encoded.bytes, &options).unwrap();
         let part = decode_window(&mut &encoded.bytes[..], Some(window), &options).unwrap();
         assert_eq!(part.raster.samples, all.raster.crop(50, 61, 90, 40).samples);
@@ -180,10 +168,7 @@ fn budgets_spend_bytes_where_they_buy_the_most() {
     let mut previous = f64::INFINITY;
     for fraction in [10, 5, 3, 2] {
         let budget = file.bytes.len() as u64 / fraction;
-        let options = DecodeOptions {
-            max_bytes: Some(budget),
-            ..DecodeOptions::default()
-        };
+        let options = DecodeOptions::default().with_max_bytes(Some(budget));
         let decoded = decode(&file.bytes, &options).unwrap();
         assert!(
             decoded.bytes_used <= budget,
@@ -221,10 +206,7 @@ fn a_tile_needing_many_times_its_share_is_not_starved_by_its_cap() {
     let raster = Raster::new(width, height, Samples::I16(samples)).unwrap();
     let budget = (width * height / 8) as u64;
     let full = encode(&raster, &tiled(128, Quality::Lossless, Some(8 * budget))).unwrap();
-    let at_budget = DecodeOptions {
-        max_bytes: Some(budget),
-        ..DecodeOptions::default()
-    };
+    let at_budget = DecodeOptions::default().with_max_bytes(Some(budget));
     let full_error = squared_error(&raster, &decode(&full.bytes, &at_budget).unwrap().raster);
     let cut_error = cut_at_budget_error(&raster, 128, budget);
     assert!(
@@ -278,10 +260,7 @@ fn a_damaged_tile_is_reported_by_number_and_the_others_decode() {
             "tile {k}"
         );
     }
-    let strict = DecodeOptions {
-        strict: true,
-        ..DecodeOptions::default()
-    };
+    let strict = DecodeOptions::default().with_strict(true);
     assert!(decode(&file, &strict).is_err());
 }
 

@@ -45,10 +45,7 @@ fn every_v2_fixture_decodes_to_its_recorded_samples() {
 #[test]
 fn a_v2_prefix_decodes_to_its_recorded_samples() {
     let file = fixture("i16_nodata_georef_lossless.ezw");
-    let options = DecodeOptions {
-        max_bytes: Some(300),
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_max_bytes(Some(300));
     let decoded = decode(&file, &options).unwrap();
     assert!(!decoded.complete);
     assert_eq!(
@@ -140,10 +137,7 @@ fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
         ("tiled_i16_97_2bpp", None, "tiled_i16_97_2bpp"),
     ] {
         let file = fixture(&format!("{name}.ezw"));
-        let options = DecodeOptions {
-            max_bytes: budget,
-            ..DecodeOptions::default()
-        };
+        let options = DecodeOptions::default().with_max_bytes(budget);
         let out = decode(&file, &options).unwrap();
         let tiling = out.header.tiling.expect("a tiled file");
         assert_eq!(
@@ -155,6 +149,30 @@ fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
             raw(&out.raster.samples),
             fixture(&format!("{decoded}.decoded")),
             "{name} at {budget:?}"
+        );
+    }
+}
+
+/// f32 files in the layout before the valid range moved to the ladder and the
+/// correction step could be implied (commit 8f9cbe0, coder 3): 9/7 max-error streams
+/// with corrections (NaN voids; on a 0.1 grid) and a 9/7 stream cut at 2 bpp.
+#[test]
+fn f32_fixtures_of_the_range_in_header_layout_decode_to_their_recorded_samples() {
+    for (name, mode, correction_step) in [
+        ("f32_nan_max_error_2", Mode::MaxError, 3.996),
+        ("f32_grid_max_error_0.25", Mode::MaxError, 0.4995),
+        ("f32_nan_97_2bpp", Mode::Lossy, 0.0),
+    ] {
+        let decoded = decode(&fixture(&format!("{name}.ezw")), &DecodeOptions::default()).unwrap();
+        assert_eq!(decoded.header.mode, mode, "{name} mode");
+        assert_eq!(decoded.header.correction_step, correction_step, "{name}");
+        let (min, max) = decoded.header.valid_range;
+        assert!(min.is_finite() && min < max, "{name} range {min} .. {max}");
+        assert!(decoded.complete && decoded.damage.is_none(), "{name}");
+        assert_eq!(
+            raw(&decoded.raster.samples),
+            fixture(&format!("{name}.decoded")),
+            "{name} samples"
         );
     }
 }

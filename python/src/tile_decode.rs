@@ -97,11 +97,7 @@ pub fn decode_tile<'py>(
     let at = |e: RustCodecError| {
         CodecError::new_err(format!("{}: tile at byte {offset}: {e}", path.display()))
     };
-    let options = DecodeOptions {
-        strict: true,
-        threads: 1,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_strict(true).with_threads(1);
     let decoded = py
         .detach(|| wavemesh_codec::decode(&bytes, &options))
         .map_err(at)?;

@@ -443,14 +443,12 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     };
     let max_bytes = max_bytes.map(|asked| at_least_decodable(asked, smallest, samples));
     let window = requested_window(args, &header)?;
-    let options = DecodeOptions {
-        max_bytes,
-        max_passes: None,
-        limits,
-        strict: args.strict,
-        significance_map: args.mesh.is_some(),
-        threads: args.threads.threads,
-    };
+    let options = DecodeOptions::default()
+        .with_max_bytes(max_bytes)
+        .with_limits(limits)
+        .with_strict(args.strict)
+        .with_significance_map(args.mesh.is_some())
+        .with_threads(args.threads.threads);
     check_mesh_args(args, &header, samples)?;
     // A whole tiled file to a GeoTIFF is decoded and written one tile row at a time.
     let streamed = layout.as_ref().filter(|_| {
@@ -789,8 +787,12 @@ impl RasterReport {
         );
     }
 
-    /// The valid range, as the text reports show it.
+    /// The valid range, as the text reports show it (a stream keeps it in its ladder,
+    /// which a cut file may lack).
     pub(super) fn values(&self) -> String {
+        if self.valid_min.is_nan() {
+            return "range unknown (not in this prefix)".into();
+        }
         format!("{} .. {}", self.valid_min, self.valid_max)
     }
 

@@ -109,10 +109,7 @@ fn encode_or_fail(raster: &Raster, options: &EncodeOptions) -> Result<(Encoded, 
 /// Decodes `lossless` with the significance map, meshes it within [`MESH_TOLERANCE`],
 /// checks the bound against `raster` and writes the mesh to `path` (glTF binary).
 fn demo_mesh(raster: &Raster, lossless: &Encoded, path: &Path) -> Result<DemoMesh, CliError> {
-    let options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_significance_map(true);
     let (decoded, decode_seconds, _) = timed(|| decode(&lossless.bytes, &options));
     let decoded = decoded.map_err(|e| CliError::Stream(PathBuf::from("5/3 lossless"), e))?;
     let map = decoded
@@ -167,10 +164,7 @@ fn decode_row(
     max_bytes: Option<u64>,
     label: String,
 ) -> Result<Row, CliError> {
-    let options = DecodeOptions {
-        max_bytes,
-        ..DecodeOptions::default()
-    };
+    let options = DecodeOptions::default().with_max_bytes(max_bytes);
     let (decoded, seconds, _) = timed(|| decode(&encoded.bytes, &options));
     let decoded = decoded.map_err(|e| CliError::Stream(PathBuf::from(stream), e))?;
     let d: Distortion = compare_rasters(raster, &decoded.raster, Path::new(stream))?;

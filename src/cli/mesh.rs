@@ -536,11 +536,9 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
             timed(|| encode(&raster, &options))
         });
     let encoded = encoded.map_err(CliError::Encode)?;
-    let decode_options = DecodeOptions {
-        significance_map: true,
-        limits: args.input_args.limits(),
-        ..DecodeOptions::default()
-    };
+    let decode_options = DecodeOptions::default()
+        .with_significance_map(true)
+        .with_limits(args.input_args.limits());
     let (decoded, decode_seconds, decode_peak) =
         with_codec_progress("decoding", Workload::of(&raster), || {
             timed(|| decode(&encoded.bytes, &decode_options))

@@ -115,10 +115,7 @@ pub struct LimitArgs {
 impl LimitArgs {
     /// The codec's view of these limits.
     fn limits(&self) -> Limits {
-        Limits {
-            max_samples: self.max_samples,
-            max_memory: self.max_memory,
-        }
+        Limits::new(self.max_samples, self.max_memory)
     }
 
     /// Refuses `what` needing `samples` samples and `bytes` bytes beyond the limits.

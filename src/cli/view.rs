@@ -201,11 +201,9 @@ impl Loaded {
         let data = std::fs::read(input)
             .map_err(|e| CliError::Input(input.to_path_buf(), e.to_string()))?;
         let start = Instant::now();
-        let decode_options = DecodeOptions {
-            significance_map: true,
-            limits: options.limit_args.limits(),
-            ..DecodeOptions::default()
-        };
+        let decode_options = DecodeOptions::default()
+            .with_significance_map(true)
+            .with_limits(options.limit_args.limits());
         let decoded =
             decode(&data, &decode_options).map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
         if !has_valid_cell(&decoded.raster) {

@@ -4,6 +4,7 @@
 
 use super::number::{short_value, write_number};
 use super::{derived_bands, read_kinds, scale_to_u16, write_varint, Header, Reader, Tiling};
+use crate::corrections::correction_step;
 use crate::error::CodecError;
 use crate::ezw::Coder;
 use crate::raster::geokey::{
@@ -25,7 +26,10 @@ mod flag {
     pub const MAX_ERROR: u64 = 1 << 7;
     pub const TILED: u64 = 1 << 8;
     pub const OVERLAP: u64 = 1 << 9;
-    pub const ALL: u64 = (1 << 10) - 1;
+    pub const RANGE_IN_LADDER: u64 = 1 << 10;
+    pub const CORRECTION_STEP_IMPLIED: u64 = 1 << 11;
+    pub const F32_MAPPING: u64 = 1 << 12;
+    pub const ALL: u64 = (1 << 13) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -70,16 +74,8 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
             | u8::from(header.coder != Coder::V1) << CODER_2_BIT,
         header.levels | levels_coder_bits(header.coder),
     ]);
-    write_number(&mut body, header.mapping.offset);
-    // The sample step means something to 5/3 streams only, the coefficient step to 9/7.
-    write_number(
-        &mut body,
-        match header.wavelet {
-            Wavelet::Int53 => header.mapping.step,
-            Wavelet::Cdf97 => header.coefficient_step,
-        },
-    );
-    write_values(&mut body, header);
+    write_mapping(&mut body, header);
+    write_values(&mut body, header, false);
     body.push(header.top_plane.map_or(0xFF, |p| p));
     if bands_listed(header) {
         for &(shift, scale) in &header.bands {
@@ -95,7 +91,9 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     }
     if has_residual(header) {
         write_varint(&mut body, header.residual_len.into());
-        write_number(&mut body, header.correction_step);
+        if !correction_step_implied(header) {
+            write_number(&mut body, header.correction_step);
+        }
     }
     write_varint(
         &mut body,
@@ -103,6 +101,41 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     );
     write_gis(&mut body, header);
     finish(body)
+}
+
+/// The offset and the step: the sample step means something to 5/3 streams only, the
+/// coefficient step to 9/7. Two numbers, or (flag 12) two f32s when both are f32s that
+/// take more as numbers (a float raster's mean and a 9/7 step: 8 bytes instead of 10).
+fn write_mapping(body: &mut Vec<u8>, header: &Header) {
+    let (offset, step) = mapping_pair(header);
+    if f32_mapping(header) {
+        for v in [offset, step] {
+            body.extend_from_slice(&(v as f32).to_bits().to_le_bytes());
+        }
+    } else {
+        write_number(body, offset);
+        write_number(body, step);
+    }
+}
+
+/// The offset and the step the header stores (see [`write_mapping`]).
+fn mapping_pair(header: &Header) -> (f64, f64) {
+    let step = match header.wavelet {
+        Wavelet::Int53 => header.mapping.step,
+        Wavelet::Cdf97 => header.coefficient_step,
+    };
+    (header.mapping.offset, step)
+}
+
+/// Whether the offset and step are stored as two f32s (flag 12): both are f32s and two
+/// numbers would take more than their 8 bytes.
+fn f32_mapping(header: &Header) -> bool {
+    let (offset, step) = mapping_pair(header);
+    let is_f32 = |v: f64| f64::from(v as f32).to_bits() == v.to_bits();
+    let mut numbers = Vec::new();
+    write_number(&mut numbers, offset);
+    write_number(&mut numbers, step);
+    header.tiling.is_none() && is_f32(offset) && is_f32(step) && numbers.len() > 8
 }
 
 /// Serialises the header of a tiled file: the raster's description, the tile size and
@@ -121,20 +154,23 @@ fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
     if tiling.overlap > 0 {
         write_varint(&mut body, tiling.overlap.into());
     }
-    write_values(&mut body, header);
+    write_values(&mut body, header, true);
     write_varint(&mut body, tiling.index_len);
     write_gis(&mut body, header);
     finish(body)
 }
 
-/// The error bound (when listed), the valid range and the nodata value (when there is
-/// one), as both layouts have them.
-fn write_values(body: &mut Vec<u8>, header: &Header) {
+/// The error bound (when listed), the valid range (`with_range`: a tiled header's; a
+/// stream's is in its ladder) and the nodata value (when there is one), as both layouts
+/// have them.
+fn write_values(body: &mut Vec<u8>, header: &Header, with_range: bool) {
     if max_error_listed(header) {
         write_number(body, header.max_error);
     }
-    write_number(body, header.valid_range.0);
-    write_number(body, header.valid_range.1);
+    if with_range {
+        write_number(body, header.valid_range.0);
+        write_number(body, header.valid_range.1);
+    }
     if let Some(nodata) = header.nodata {
         write_number(body, nodata);
     }
@@ -186,6 +222,12 @@ fn flags(header: &Header) -> u64 {
         (max_error_listed(header), flag::MAX_ERROR),
         (!single, flag::TILED),
         (header.tiling.is_some_and(|t| t.overlap > 0), flag::OVERLAP),
+        (single, flag::RANGE_IN_LADDER),
+        (f32_mapping(header), flag::F32_MAPPING),
+        (
+            single && has_residual(header) && correction_step_implied(header),
+            flag::CORRECTION_STEP_IMPLIED,
+        ),
     ] {
         if set {
             flags |= bit;
@@ -218,8 +260,24 @@ fn has_residual(header: &Header) -> bool {
     header.residual_len > 0 || header.correction_step != 0.0
 }
 
-/// Parses the fields after the header length; `r` ends before the CRC.
-pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
+/// Whether the correction step is the one the mode implies, so the header can leave it
+/// out (flag 11).
+fn correction_step_implied(header: &Header) -> bool {
+    header.correction_step.to_bits() == implied_correction_step(header).to_bits()
+}
+
+/// A max-error stream's correction step is the encoder's for its bound and sample type;
+/// any other stream's residual section holds float residuals (step 0).
+fn implied_correction_step(header: &Header) -> f64 {
+    match header.mode {
+        Mode::MaxError => correction_step(header.sample_type, header.max_error),
+        _ => 0.0,
+    }
+}
+
+/// Parses the fields after the header length; `r` ends before the CRC. Also says whether
+/// the valid range is in the ladder (flag 10; the header's is NaN until it is read).
+pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError> {
     let flags = r.varint()?;
     if flags & !flag::ALL != 0 {
         return Err(CodecError::InvalidHeader(format!(
@@ -247,7 +305,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
                 "a tiled header with the primed-models bit".into(),
             ));
         }
-        return parse_tiled(
+        let header = parse_tiled(
             r,
             flags,
             (width, height),
@@ -255,17 +313,23 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
             wavelet,
             levels,
             mode,
-        );
+        )?;
+        return Ok((header, false));
     }
     if flags & flag::OVERLAP != 0 {
         return Err(CodecError::InvalidHeader(
             "a tile overlap in a single stream".into(),
         ));
     }
-    let offset = r.number()?;
+    let (offset, stored_step) = if flags & flag::F32_MAPPING != 0 {
+        let mut f32_value = || Ok::<_, CodecError>(f64::from(f32::from_bits(r.u32()?)));
+        (f32_value()?, f32_value()?)
+    } else {
+        (r.number()?, r.number()?)
+    };
     let (step, coefficient_step) = match wavelet {
-        Wavelet::Int53 => (r.number()?, 1.0),
-        Wavelet::Cdf97 => (1.0, r.number()?),
+        Wavelet::Int53 => (stored_step, 1.0),
+        Wavelet::Cdf97 => (1.0, stored_step),
     };
     let (max_error, (min, max), nodata) = read_values(r, flags, mode)?;
     let top_plane = match r.u8()? {
@@ -286,14 +350,10 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
     } else {
         0
     };
-    let (residual_len, correction_step) = if flags & flag::RESIDUAL != 0 {
-        (r.varint_u32("residual length")?, r.number()?)
-    } else {
-        (0, 0.0)
-    };
+    let (residual_len, correction_step) = read_residual(r, flags, (mode, sample_type, max_error))?;
     let ladder_len = r.varint_u32("ladder length")?;
     let (georef, metadata) = read_gis(r, flags)?;
-    Ok(Header {
+    let header = Header {
         width,
         height,
         sample_type,
@@ -318,21 +378,52 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         georef,
         metadata,
         tiling: None,
-    })
+    };
+    Ok((header, flags & flag::RANGE_IN_LADDER != 0))
+}
+
+/// The residual section's length and correction step (flag 6; the step listed, or
+/// implied by `mode`, `sample_type` and `max_error` under flag 11).
+fn read_residual(
+    r: &mut Reader,
+    flags: u64,
+    (mode, sample_type, max_error): (Mode, SampleType, f64),
+) -> Result<(u32, f64), CodecError> {
+    let residual = flags & (flag::RESIDUAL | flag::CORRECTION_STEP_IMPLIED);
+    if residual == 0 {
+        return Ok((0, 0.0));
+    }
+    if residual == flag::CORRECTION_STEP_IMPLIED {
+        return Err(CodecError::InvalidHeader(
+            "an implied correction step without a residual section".into(),
+        ));
+    }
+    let residual_len = r.varint_u32("residual length")?;
+    let step = match (residual & flag::CORRECTION_STEP_IMPLIED != 0, mode) {
+        (false, _) => r.number()?,
+        (true, Mode::MaxError) => correction_step(sample_type, max_error),
+        (true, _) => 0.0,
+    };
+    Ok((residual_len, step))
 }
 
 /// The error bound, valid range and nodata value of a header.
 type Values = (f64, (f64, f64), Option<f64>);
 
-/// The error bound (flag 7, else the mode's), the valid range and the nodata value
-/// (flag 0), in the order both header layouts have them.
+/// The error bound (flag 7, else the mode's), the valid range (NaN under flag 10: it is
+/// in the ladder) and the nodata value (flag 0), in the order both header layouts have
+/// them.
 fn read_values(r: &mut Reader, flags: u64, mode: Mode) -> Result<Values, CodecError> {
     let max_error = if flags & flag::MAX_ERROR != 0 {
         r.number()?
     } else {
         implied_max_error(mode)
     };
-    let valid_range = (r.number()?, r.number()?);
+    let valid_range = if flags & flag::RANGE_IN_LADDER != 0 {
+        (f64::NAN, f64::NAN)
+    } else {
+        (r.number()?, r.number()?)
+    };
     let nodata = if flags & flag::NODATA != 0 {
         Some(r.number()?)
     } else {
@@ -397,7 +488,13 @@ fn parse_tiled(
     levels: u8,
     mode: Mode,
 ) -> Result<Header, CodecError> {
-    let stream_only = flag::PAYLOAD_TRUNCATED | flag::BANDS_LISTED | flag::MASK | flag::RESIDUAL;
+    let stream_only = flag::PAYLOAD_TRUNCATED
+        | flag::BANDS_LISTED
+        | flag::MASK
+        | flag::RESIDUAL
+        | flag::RANGE_IN_LADDER
+        | flag::CORRECTION_STEP_IMPLIED
+        | flag::F32_MAPPING;
     if flags & stream_only != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "flags {flags:#x} of a tiled file"
@@ -733,7 +830,7 @@ impl Reader<'_> {
     }
 
     /// A *number* (see [`write_number`]).
-    fn number(&mut self) -> Result<f64, CodecError> {
+    pub(super) fn number(&mut self) -> Result<f64, CodecError> {
         let v = self.varint()?;
         match (v & 3, v >> 2) {
             (0, z) => Ok(((z >> 1) as i64 ^ -((z & 1) as i64)) as f64),

@@ -9,7 +9,7 @@ use crate::ezw::{CoefficientLayout, Decoder};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
 use crate::quantize::{rescale_97, to_samples};
-use crate::raster::{Raster, Samples};
+use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
 use crate::tiles::{ByteSource, TiledLayout, Window};
@@ -238,18 +238,25 @@ fn run_zerotree(
 }
 
 /// The decoded coefficients through the inverse transform to samples. In place: the
-/// coefficient buffer becomes the image, then the samples, so the decode holds at most
-/// the coefficients (4 bytes a sample) and the output.
+/// coefficient buffer becomes the image, then the samples (narrower ones packed inside
+/// it first, see [`narrow`]), so the decode never holds more than the coefficients
+/// (4 bytes a sample).
 fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Lsb0>>) -> Samples {
     let (width, height) = (header.width as usize, header.height as usize);
     let levels = header.levels as u32;
     let mapping = header.mapping;
-    match header.wavelet {
+    // Samples of 4 bytes are made in the coefficients' buffer; narrower ones go through
+    // i32 (rounded and clamped the same way) and are narrowed in place.
+    let wide_type = match header.sample_type {
+        SampleType::F32 => SampleType::F32,
+        _ => SampleType::I32,
+    };
+    let samples = match header.wavelet {
         Wavelet::Int53 => {
             let mut coefficients = decoder.integer_coefficients();
             wavelet::inverse_53(&mut coefficients, width, height, levels);
             to_samples(
-                header.sample_type,
+                wide_type,
                 coefficients,
                 |q| mapping.value(q as f64),
                 mask,
@@ -268,14 +275,60 @@ fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Ls
             );
             wavelet::inverse_97(&mut data, width, height, levels);
             to_samples(
-                header.sample_type,
+                wide_type,
                 data,
                 |x| mapping.value(x as f64),
                 mask,
                 header.nodata,
             )
         }
+    };
+    match samples {
+        Samples::I32(values) => narrow(values, header.sample_type),
+        other => other,
     }
+}
+
+/// `values` (whole numbers in i32) as the integer `sample_type`, clamped to its range.
+fn narrow(values: Vec<i32>, sample_type: SampleType) -> Samples {
+    match sample_type {
+        SampleType::U8 => Samples::U8(narrowed(values, sample_type, |v| v as u8)),
+        SampleType::U16 => Samples::U16(narrowed(values, sample_type, |v| v as u16)),
+        SampleType::I16 => Samples::I16(narrowed(values, sample_type, |v| v as u16 as i16)),
+        SampleType::I32 | SampleType::F32 => Samples::I32(values),
+    }
+}
+
+/// `values` clamped to the range of the 1- or 2-byte `sample_type`, each made a `T` from
+/// its low bits by `from_bits`. They are packed into the front of `values`' own buffer
+/// first (two 16-bit or four 8-bit samples an i32), the buffer shrunk to that, then
+/// copied out: the decode holds at most the i32 buffer, never the i32 buffer and the
+/// narrow samples beside it.
+fn narrowed<T>(
+    mut values: Vec<i32>,
+    sample_type: SampleType,
+    from_bits: impl Fn(u32) -> T,
+) -> Vec<T> {
+    let bits = 8 * sample_type.bytes() as u32;
+    let (lo, hi) = sample_type.value_range();
+    let (lo, hi) = (lo as i32, hi as i32);
+    let per_word = (32 / bits) as usize;
+    let lane_mask = (1u32 << bits) - 1;
+    let n = values.len();
+    // Sample i goes to word i / per_word ≤ i, whose own value was read before.
+    for i in 0..n {
+        let v = values[i].clamp(lo, hi) as u32 & lane_mask;
+        let (word, lane) = (i / per_word, (i % per_word) as u32);
+        let kept = if lane == 0 { 0 } else { values[word] as u32 };
+        values[word] = (kept | v << (bits * lane)) as i32;
+    }
+    values.truncate(n.div_ceil(per_word));
+    values.shrink_to_fit();
+    (0..n)
+        .map(|i| {
+            from_bits(values[i / per_word] as u32 >> (bits * (i % per_word) as u32) & lane_mask)
+        })
+        .collect()
 }
 
 /// Applies the residual section: exact float residuals once the whole stream is decoded
@@ -314,5 +367,36 @@ fn apply_residual_section(
             _ => false,
         },
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn narrowing_clamps_and_keeps_every_sample_in_order() {
+        let values = vec![-70000, -1, 0, 1, 255, 256, 40000, 70000, 12345];
+        let clamp = |lo: i32, hi: i32| values.iter().map(move |v| (*v).clamp(lo, hi));
+        assert_eq!(
+            narrow(values.clone(), SampleType::U8),
+            Samples::U8(clamp(0, 255).map(|v| v as u8).collect())
+        );
+        assert_eq!(
+            narrow(values.clone(), SampleType::U16),
+            Samples::U16(clamp(0, 65535).map(|v| v as u16).collect())
+        );
+        assert_eq!(
+            narrow(values.clone(), SampleType::I16),
+            Samples::I16(clamp(-32768, 32767).map(|v| v as i16).collect())
+        );
+        assert_eq!(
+            narrow(values.clone(), SampleType::I32),
+            Samples::I32(values)
+        );
+        assert_eq!(
+            narrow(Vec::new(), SampleType::U16),
+            Samples::U16(Vec::new())
+        );
     }
 }

@@ -15,8 +15,17 @@ pub enum Quality {
     Precision(f64),
 }
 
-/// Encoder settings.
+/// Encoder settings: made by [`EncodeOptions::new`] (or [`EncodeOptions::lossless`],
+/// [`EncodeOptions::max_error`], [`EncodeOptions::budget`]) and adjusted by the
+/// `with_…` setters, so that fields added later break no caller.
+///
+/// ```
+/// use wavemesh_codec::{EncodeOptions, Wavelet};
+/// let options = EncodeOptions::budget(4000).with_tile_size(None).with_threads(1);
+/// assert_eq!(options.wavelet, Wavelet::Cdf97);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct EncodeOptions {
     /// The transform; see [`EncodeOptions::new`] for the defaults.
     pub wavelet: Wavelet,
@@ -53,18 +62,67 @@ impl EncodeOptions {
         }
     }
 
+    /// Bit-exact coding (5/3), with the defaults of [`EncodeOptions::new`].
+    pub fn lossless() -> EncodeOptions {
+        EncodeOptions::new(Quality::Lossless, None)
+    }
+
+    /// Every valid sample within `error` data units (5/3), with the defaults of
+    /// [`EncodeOptions::new`].
+    pub fn max_error(error: f64) -> EncodeOptions {
+        EncodeOptions::new(Quality::MaxError(error), None)
+    }
+
+    /// A 9/7 stream cut at `bytes` bytes (a rate of `8 · bytes / samples` bits per
+    /// sample), with the defaults of [`EncodeOptions::new`].
+    pub fn budget(bytes: u64) -> EncodeOptions {
+        EncodeOptions::new(Quality::Lossless, Some(bytes))
+    }
+
     /// The same options coding one stream whatever the raster's size: what the decoder's
     /// significance map, and so the zerotree mesher, needs.
     pub fn single_stream(self) -> EncodeOptions {
-        EncodeOptions {
-            tile_size: None,
-            ..self
-        }
+        self.with_tile_size(None)
     }
 }
 
-/// Resource limits checked before the decoder allocates.
+impl Default for EncodeOptions {
+    /// [`EncodeOptions::lossless`].
+    fn default() -> Self {
+        EncodeOptions::lossless()
+    }
+}
+
+/// `with_FIELD(value)` setters, each returning the options with that field set.
+macro_rules! setters {
+    ($options:ident { $($setter:ident => $field:ident: $type:ty),* $(,)? }) => {
+        impl $options {
+            $(
+                #[doc = concat!("These options with [`", stringify!($field), "`](Self::",
+                    stringify!($field), ") set to `", stringify!($field), "`.")]
+                #[must_use]
+                pub fn $setter(mut self, $field: $type) -> $options {
+                    self.$field = $field;
+                    self
+                }
+            )*
+        }
+    };
+}
+
+setters!(EncodeOptions {
+    with_wavelet => wavelet: Wavelet,
+    with_levels => levels: Option<u32>,
+    with_quality => quality: Quality,
+    with_budget_bytes => budget_bytes: Option<u64>,
+    with_tile_size => tile_size: Option<u32>,
+    with_threads => threads: usize,
+});
+
+/// Resource limits checked before the decoder allocates: [`Limits::DEFAULT`] or
+/// [`Limits::new`], adjusted by the `with_…` setters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct Limits {
     /// Largest `width × height` accepted.
     pub max_samples: u64,
@@ -74,10 +132,15 @@ pub struct Limits {
 
 impl Limits {
     /// The defaults: 2^31 samples and 2 GiB of working memory.
-    pub const DEFAULT: Limits = Limits {
-        max_samples: 1 << 31,
-        max_memory: 2 << 30,
-    };
+    pub const DEFAULT: Limits = Limits::new(1 << 31, 2 << 30);
+
+    /// At most `max_samples` samples and `max_memory` bytes of working memory.
+    pub const fn new(max_samples: u64, max_memory: u64) -> Limits {
+        Limits {
+            max_samples,
+            max_memory,
+        }
+    }
 }
 
 impl Default for Limits {
@@ -86,8 +149,21 @@ impl Default for Limits {
     }
 }
 
-/// Decoder settings.
+setters!(Limits {
+    with_max_samples => max_samples: u64,
+    with_max_memory => max_memory: u64,
+});
+
+/// Decoder settings: [`DecodeOptions::default`] (everything in the file, default limits,
+/// every core) adjusted by the `with_…` setters.
+///
+/// ```
+/// use wavemesh_codec::DecodeOptions;
+/// let prefix = DecodeOptions::default().with_max_bytes(Some(300)).with_strict(true);
+/// assert_eq!(prefix.max_bytes, Some(300));
+/// ```
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[non_exhaustive]
 pub struct DecodeOptions {
     /// Decode only the first this many bytes of the file (progressive decoding).
     pub max_bytes: Option<u64>,
@@ -104,3 +180,12 @@ pub struct DecodeOptions {
     /// Threads decoding tiles at once (0: one per core).
     pub threads: usize,
 }
+
+setters!(DecodeOptions {
+    with_max_bytes => max_bytes: Option<u64>,
+    with_max_passes => max_passes: Option<u32>,
+    with_limits => limits: Limits,
+    with_strict => strict: bool,
+    with_significance_map => significance_map: bool,
+    with_threads => threads: usize,
+});

@@ -8,12 +8,10 @@ use crate::raster::{Raster, SampleType, Samples};
 
 /// Decodes one tile's stream (its allocated prefix), on the calling thread.
 pub(super) fn tile(bytes: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
-    let single = DecodeOptions {
-        max_bytes: None,
-        threads: 1,
-        significance_map: false,
-        ..*options
-    };
+    let single = (*options)
+        .with_max_bytes(None)
+        .with_threads(1)
+        .with_significance_map(false);
     crate::progress::observe(|_| {}, || crate::pipeline::decode(bytes, &single))
 }
 

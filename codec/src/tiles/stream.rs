@@ -42,15 +42,16 @@ pub fn encode_tile(
     options: &EncodeOptions,
     cap: Option<u64>,
 ) -> Result<EncodedTile, CodecError> {
-    let single = EncodeOptions {
-        tile_size: None,
-        budget_bytes: cap,
-        threads: 1,
-        levels: options
-            .levels
-            .map(|l| l.min(wavelet::max_levels(part.width, part.height))),
-        ..options.clone()
-    };
+    let single = options
+        .clone()
+        .with_tile_size(None)
+        .with_budget_bytes(cap)
+        .with_threads(1)
+        .with_levels(
+            options
+                .levels
+                .map(|l| l.min(wavelet::max_levels(part.width, part.height))),
+        );
     let encoded = crate::progress::observe(|_| {}, || crate::pipeline::encode(part, &single))?;
     let any_valid = (0..part.len()).any(|i| part.is_valid(i));
     let passes = encoded

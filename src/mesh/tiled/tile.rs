@@ -137,10 +137,7 @@ impl TileMeshSummary {
 fn code_losslessly(raster: &Raster) -> Result<Decoded, TileMeshError> {
     let options = EncodeOptions::new(Quality::Lossless, None).single_stream();
     let encoded = encode(raster, &options).map_err(TileMeshError::Encode)?;
-    let decode_options = DecodeOptions {
-        significance_map: true,
-        ..DecodeOptions::default()
-    };
+    let decode_options = DecodeOptions::default().with_significance_map(true);
     decode(&encoded.bytes, &decode_options).map_err(TileMeshError::Decode)
 }
 
