@@ -60,17 +60,15 @@ pub struct IntegerPlane {
 
 /// Value range (min, max) of the valid samples, `None` if there are none.
 pub fn valid_range(raster: &Raster, mask: &[bool]) -> Option<(f64, f64)> {
-    let mut range: Option<(f64, f64)> = None;
-    for (i, &valid) in mask.iter().enumerate() {
-        if valid {
-            let v = raster.samples.get_f64(i);
-            range = Some(match range {
-                None => (v, v),
-                Some((lo, hi)) => (lo.min(v), hi.max(v)),
-            });
+    raster.samples.fold_f64(None, |range, i, v| {
+        if !mask[i] {
+            return range;
         }
-    }
-    range
+        Some(match range {
+            None => (v, v),
+            Some((lo, hi)) => (lo.min(v), hi.max(v)),
+        })
+    })
 }
 
 /// Quantises an integer raster: lossless when `max_error < 1`, else with step `2⌊E⌋+1`.
@@ -93,17 +91,14 @@ pub fn integer_plane(
         )));
     }
     let mapping = ValueMapping { offset: min, step };
-    let values = mask
-        .iter()
-        .enumerate()
-        .map(|(i, &valid)| {
-            if valid {
-                ((raster.samples.get_f64(i) - min + e) / step).floor() as i32
-            } else {
-                0
-            }
-        })
-        .collect();
+    // `v − min + e ≥ 0` for every valid sample, so truncation is the floor.
+    let values = raster.samples.map_f64(|i, v| {
+        if mask[i] {
+            ((v - min + e) / step) as i32
+        } else {
+            0
+        }
+    });
     Ok(IntegerPlane {
         values,
         mapping,

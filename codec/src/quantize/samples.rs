@@ -44,29 +44,34 @@ pub(crate) fn to_samples<X: Copy>(
         _ => f64::NAN,
     };
     let (lo, hi) = sample_type.value_range();
-    let value = |i: usize, x: X| -> f64 {
-        if mask.is_some_and(|m| !m[i]) {
-            fill
-        } else {
-            value_of(x)
-        }
-    };
-    let int = |i: usize, x: X| -> f64 {
-        let v = value(i, x);
+    let int = |v: f64| -> f64 {
         if v.is_nan() {
             0.0
         } else {
-            v.round().clamp(lo, hi)
+            // Clamping to the type's whole-number bounds first rounds the same.
+            round_small(v.clamp(lo, hi))
         }
     };
-    let values = values.into_iter().enumerate();
+    let len = values.len();
+    let values = values.into_iter();
+    // Every sample first, then the voids overwritten with the fill value.
     let mut samples = match sample_type {
-        SampleType::U8 => Samples::U8(values.map(|(i, x)| int(i, x) as u8).collect()),
-        SampleType::U16 => Samples::U16(values.map(|(i, x)| int(i, x) as u16).collect()),
-        SampleType::I16 => Samples::I16(values.map(|(i, x)| int(i, x) as i16).collect()),
-        SampleType::I32 => Samples::I32(values.map(|(i, x)| int(i, x) as i32).collect()),
-        SampleType::F32 => Samples::F32(values.map(|(i, x)| value(i, x) as f32).collect()),
+        SampleType::U8 => Samples::U8(values.map(|x| int(value_of(x)) as u8).collect()),
+        SampleType::U16 => Samples::U16(values.map(|x| int(value_of(x)) as u16).collect()),
+        SampleType::I16 => Samples::I16(values.map(|x| int(value_of(x)) as i16).collect()),
+        SampleType::I32 => Samples::I32(values.map(|x| int(value_of(x)) as i32).collect()),
+        SampleType::F32 => Samples::F32(values.map(|x| value_of(x) as f32).collect()),
     };
+    if let Some(mask) = mask {
+        let voids = mask[..len].iter_zeros();
+        match &mut samples {
+            Samples::U8(v) => voids.for_each(|i| v[i] = int(fill) as u8),
+            Samples::U16(v) => voids.for_each(|i| v[i] = int(fill) as u16),
+            Samples::I16(v) => voids.for_each(|i| v[i] = int(fill) as i16),
+            Samples::I32(v) => voids.for_each(|i| v[i] = int(fill) as i32),
+            Samples::F32(v) => voids.for_each(|i| v[i] = fill as f32),
+        }
+    }
     // The in-place collect keeps the input's capacity: give the surplus back.
     match &mut samples {
         Samples::U8(v) => v.shrink_to_fit(),
@@ -76,4 +81,39 @@ pub(crate) fn to_samples<X: Copy>(
         Samples::F32(v) => v.shrink_to_fit(),
     }
     samples
+}
+
+/// `v.round()` (halves away from zero) for `|v| < 2^62`, up to the sign of a zero result,
+/// without a call into libm: the truncation, moved away from zero when the part cut off
+/// is at least ½ (`v − trunc(v)` is exact).
+#[inline]
+fn round_small(v: f64) -> f64 {
+    let truncated = v as i64 as f64;
+    let cut = v - truncated;
+    // Without a branch: the fractions of 9/7 reconstructions are random.
+    truncated + ((cut >= 0.5) as i32 - (cut <= -0.5) as i32) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_small;
+
+    #[test]
+    fn round_small_matches_round() {
+        let halves = (-40..=40).map(|k| k as f64 * 0.25);
+        let awkward = [
+            0.499_999_999_999_999_94,
+            -0.499_999_999_999_999_94,
+            1.5 - f64::EPSILON,
+            2.5 + f64::EPSILON * 2.0,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            9_007_199_254_740_993.0,
+            2_147_483_647.4,
+            -2_147_483_648.6,
+        ];
+        for v in halves.chain(awkward) {
+            assert_eq!(round_small(v), v.round(), "{v}");
+        }
+    }
 }
