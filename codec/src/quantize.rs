@@ -60,6 +60,20 @@ pub struct IntegerPlane {
 
 /// Value range (min, max) of the valid samples, `None` if there are none.
 pub fn valid_range(raster: &Raster, mask: &[bool]) -> Option<(f64, f64)> {
+    if raster.sample_type().is_integer() {
+        // Whole numbers: no −0.0 to tell from 0.0, so the bounds alone are the state.
+        let (lo, hi) =
+            raster
+                .samples
+                .fold_f64((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i, v| {
+                    let valid = mask[i];
+                    (
+                        if valid { lo.min(v) } else { lo },
+                        if valid { hi.max(v) } else { hi },
+                    )
+                });
+        return (lo <= hi).then_some((lo, hi));
+    }
     raster.samples.fold_f64(None, |range, i, v| {
         if !mask[i] {
             return range;
