@@ -208,9 +208,7 @@ fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f
     for (sub, &norm) in subbands.iter().zip(norms) {
         for y in 0..sub.height {
             let row = (sub.y0 + y) * width + sub.x0;
-            for &c in &data[row..row + sub.width] {
-                largest = largest.max((c as f64 * norm).abs());
-            }
+            largest = largest.max(largest_magnitude(&data[row..row + sub.width], norm));
         }
     }
     if largest > 0.0 {
@@ -224,6 +222,24 @@ fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f
     } else {
         1.0
     }
+}
+
+/// The largest `|c · norm|` over `values` (0 when there are none; NaNs are passed over).
+/// Four running maxima: a maximum of magnitudes does not depend on the order it is taken
+/// in, and independent chains keep the processor busy.
+fn largest_magnitude(values: &[f32], norm: f64) -> f64 {
+    let mut lanes = [0f64; 4];
+    let chunks = values.chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &c) in lanes.iter_mut().zip(chunk) {
+            *lane = lane.max((c as f64 * norm).abs());
+        }
+    }
+    for &c in rest {
+        lanes[0] = lanes[0].max((c as f64 * norm).abs());
+    }
+    lanes.iter().fold(0.0, |a, &b| a.max(b))
 }
 
 /// Quantises floats so every sample stays within `e` after rounding back to f32: the grid
