@@ -153,14 +153,12 @@ impl ArithmeticEncoder {
         self.low = (self.low & 0x00FF_FFFF) << 8;
     }
 
-    #[inline]
+    #[inline(always)]
     fn encode_with_bound(&mut self, bit: bool, bound: u32) {
-        if bit {
-            self.low += bound as u64;
-            self.range -= bound;
-        } else {
-            self.range = bound;
-        }
+        // Branch-free, as in the decoder: the coded bit is unpredictable by nature.
+        let mask = (bit as u32).wrapping_neg();
+        self.low += u64::from(bound & mask);
+        self.range = (bound & !mask) | (self.range.wrapping_sub(bound) & mask);
         while self.range < TOP {
             self.range <<= 8;
             self.shift_low();
@@ -184,7 +182,7 @@ impl ArithmeticEncoder {
 }
 
 impl BitSink for ArithmeticEncoder {
-    #[inline]
+    #[inline(always)]
     fn encode(&mut self, bit: bool, model: &mut BitModel) {
         let bound = (self.range >> PROB_BITS) * model.p0();
         model.update(bit);

@@ -23,7 +23,7 @@ mod samples;
 mod voids;
 
 pub(crate) use prepare::{prepare_53, prepare_97, Prepared};
-pub(crate) use samples::{rescale_97, to_samples};
+pub(crate) use samples::{integer_samples, rescale_97, to_samples};
 pub(crate) use voids::fill_voids;
 
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
@@ -60,17 +60,29 @@ pub struct IntegerPlane {
 
 /// Value range (min, max) of the valid samples, `None` if there are none.
 pub fn valid_range(raster: &Raster, mask: &[bool]) -> Option<(f64, f64)> {
-    let mut range: Option<(f64, f64)> = None;
-    for (i, &valid) in mask.iter().enumerate() {
-        if valid {
-            let v = raster.samples.get_f64(i);
-            range = Some(match range {
-                None => (v, v),
-                Some((lo, hi)) => (lo.min(v), hi.max(v)),
-            });
-        }
+    if raster.sample_type().is_integer() {
+        // Whole numbers: no −0.0 to tell from 0.0, so the bounds alone are the state.
+        let (lo, hi) =
+            raster
+                .samples
+                .fold_f64((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i, v| {
+                    let valid = mask[i];
+                    (
+                        if valid { lo.min(v) } else { lo },
+                        if valid { hi.max(v) } else { hi },
+                    )
+                });
+        return (lo <= hi).then_some((lo, hi));
     }
-    range
+    raster.samples.fold_f64(None, |range, i, v| {
+        if !mask[i] {
+            return range;
+        }
+        Some(match range {
+            None => (v, v),
+            Some((lo, hi)) => (lo.min(v), hi.max(v)),
+        })
+    })
 }
 
 /// Quantises an integer raster: lossless when `max_error < 1`, else with step `2⌊E⌋+1`.
@@ -93,17 +105,14 @@ pub fn integer_plane(
         )));
     }
     let mapping = ValueMapping { offset: min, step };
-    let values = mask
-        .iter()
-        .enumerate()
-        .map(|(i, &valid)| {
-            if valid {
-                ((raster.samples.get_f64(i) - min + e) / step).floor() as i32
-            } else {
-                0
-            }
-        })
-        .collect();
+    // `v − min + e ≥ 0` for every valid sample, so truncation is the floor.
+    let values = raster.samples.map_f64(|i, v| {
+        if mask[i] {
+            ((v - min + e) / step) as i32
+        } else {
+            0
+        }
+    });
     Ok(IntegerPlane {
         values,
         mapping,

@@ -136,6 +136,44 @@ impl Samples {
         }
     }
 
+    /// `f(i, v)` for every sample `i` widened to `v: f64`, in order, collected: one typed
+    /// loop instead of a type dispatch per sample.
+    pub(crate) fn map_f64<U>(&self, mut f: impl FnMut(usize, f64) -> U) -> Vec<U> {
+        match self {
+            Samples::U8(v) => v.iter().enumerate().map(|(i, &x)| f(i, x as f64)).collect(),
+            Samples::U16(v) => v.iter().enumerate().map(|(i, &x)| f(i, x as f64)).collect(),
+            Samples::I16(v) => v.iter().enumerate().map(|(i, &x)| f(i, x as f64)).collect(),
+            Samples::I32(v) => v.iter().enumerate().map(|(i, &x)| f(i, x as f64)).collect(),
+            Samples::F32(v) => v.iter().enumerate().map(|(i, &x)| f(i, x as f64)).collect(),
+        }
+    }
+
+    /// Folds `f(acc, i, v)` over every sample `i` widened to `v: f64`, in order.
+    pub(crate) fn fold_f64<A>(&self, init: A, mut f: impl FnMut(A, usize, f64) -> A) -> A {
+        match self {
+            Samples::U8(v) => v
+                .iter()
+                .enumerate()
+                .fold(init, |a, (i, &x)| f(a, i, x as f64)),
+            Samples::U16(v) => v
+                .iter()
+                .enumerate()
+                .fold(init, |a, (i, &x)| f(a, i, x as f64)),
+            Samples::I16(v) => v
+                .iter()
+                .enumerate()
+                .fold(init, |a, (i, &x)| f(a, i, x as f64)),
+            Samples::I32(v) => v
+                .iter()
+                .enumerate()
+                .fold(init, |a, (i, &x)| f(a, i, x as f64)),
+            Samples::F32(v) => v
+                .iter()
+                .enumerate()
+                .fold(init, |a, (i, &x)| f(a, i, x as f64)),
+        }
+    }
+
     /// `len` samples of `sample_type`, all `value` (rounded and clamped like
     /// [`Samples::from_f64`]).
     pub fn filled(sample_type: SampleType, value: f64, len: usize) -> Samples {
@@ -355,7 +393,10 @@ impl Raster {
 
     /// The validity mask: `true` for every valid sample.
     pub fn valid_mask(&self) -> Vec<bool> {
-        (0..self.len()).map(|i| self.is_valid(i)).collect()
+        // `is_valid` for every sample, in one typed loop.
+        let nodata = self.nodata;
+        self.samples
+            .map_f64(|_, v| !v.is_nan() && nodata.is_none_or(|nd| v != nd))
     }
 
     /// The `width × height` samples whose top-left corner is (`x`, `y`), with this

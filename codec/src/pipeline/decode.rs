@@ -8,7 +8,7 @@ use crate::error::CodecError;
 use crate::ezw::{CoefficientLayout, Decoder};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{rescale_97, to_samples};
+use crate::quantize::{integer_samples, rescale_97, to_samples};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
@@ -255,10 +255,10 @@ fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Ls
         Wavelet::Int53 => {
             let mut coefficients = decoder.integer_coefficients();
             wavelet::inverse_53(&mut coefficients, width, height, levels);
-            to_samples(
+            integer_samples(
                 wide_type,
                 coefficients,
-                |q| mapping.value(q as f64),
+                mapping,
                 mask,
                 header.nodata,
             )

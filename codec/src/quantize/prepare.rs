@@ -152,7 +152,8 @@ pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepa
         for y in 0..sub.height {
             let row = (sub.y0 + y) * width + sub.x0;
             for x in row..row + sub.width {
-                let q = (data[x] as f64 * scale).abs().floor() as i32;
+                // Truncating the magnitude is its floor.
+                let q = (data[x] as f64 * scale).abs() as i32;
                 coefficients[x] = if data[x] < 0.0 { -q } else { q };
             }
         }
@@ -178,26 +179,23 @@ pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepa
 /// offset works, these are shorter to store) and the samples less it as f32, voids
 /// filled.
 fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
-    let valid = mask.iter().filter(|&&m| m).count().max(1);
-    let mean = (0..raster.len())
-        .filter(|&i| mask[i])
-        .map(|i| raster.samples.get_f64(i))
-        .sum::<f64>()
-        / valid as f64;
+    let valid = mask.iter().filter(|&&m| m).count();
+    // From −0.0, as `Iterator::sum` starts: the same mean, sign of zero included.
+    let sum = raster
+        .samples
+        .fold_f64(-0.0, |sum, i, v| if mask[i] { sum + v } else { sum });
+    let mean = sum / valid.max(1) as f64;
     let mean = if raster.sample_type().is_integer() {
         mean.round()
     } else {
         f64::from(mean as f32)
     };
-    let mut centred: Vec<f64> = (0..raster.len())
-        .map(|i| {
-            if mask[i] {
-                raster.samples.get_f64(i) - mean
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let centre = |i: usize, v: f64| if mask[i] { v - mean } else { 0.0 };
+    if valid == raster.len() {
+        // No voids to fill: straight to f32.
+        return (mean, raster.samples.map_f64(|i, v| centre(i, v) as f32));
+    }
+    let mut centred = raster.samples.map_f64(centre);
     fill_voids(&mut centred, raster.width, raster.height, mask);
     (mean, centred.iter().map(|&v| v as f32).collect())
 }
@@ -210,9 +208,7 @@ fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f
     for (sub, &norm) in subbands.iter().zip(norms) {
         for y in 0..sub.height {
             let row = (sub.y0 + y) * width + sub.x0;
-            for &c in &data[row..row + sub.width] {
-                largest = largest.max((c as f64 * norm).abs());
-            }
+            largest = largest.max(largest_magnitude(&data[row..row + sub.width], norm));
         }
     }
     if largest > 0.0 {
@@ -226,6 +222,24 @@ fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f
     } else {
         1.0
     }
+}
+
+/// The largest `|c · norm|` over `values` (0 when there are none; NaNs are passed over).
+/// Four running maxima: a maximum of magnitudes does not depend on the order it is taken
+/// in, and independent chains keep the processor busy.
+fn largest_magnitude(values: &[f32], norm: f64) -> f64 {
+    let mut lanes = [0f64; 4];
+    let chunks = values.chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &c) in lanes.iter_mut().zip(chunk) {
+            *lane = lane.max((c as f64 * norm).abs());
+        }
+    }
+    for &c in rest {
+        lanes[0] = lanes[0].max((c as f64 * norm).abs());
+    }
+    lanes.iter().fold(0.0, |a, &b| a.max(b))
 }
 
 /// Quantises floats so every sample stays within `e` after rounding back to f32: the grid

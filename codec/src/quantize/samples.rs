@@ -4,6 +4,7 @@
 use bitvec::order::Lsb0;
 use bitvec::slice::BitSlice;
 
+use super::ValueMapping;
 use crate::raster::{SampleType, Samples};
 use crate::wavelet::Subband;
 
@@ -39,41 +40,135 @@ pub(crate) fn to_samples<X: Copy>(
     mask: Option<&BitSlice<u64, Lsb0>>,
     nodata: Option<f64>,
 ) -> Samples {
-    let fill = match nodata {
-        Some(nd) if sample_type != SampleType::F32 || f64::from(nd as f32) == nd => nd,
-        _ => f64::NAN,
-    };
     let (lo, hi) = sample_type.value_range();
-    let value = |i: usize, x: X| -> f64 {
-        if mask.is_some_and(|m| !m[i]) {
-            fill
-        } else {
-            value_of(x)
-        }
-    };
-    let int = |i: usize, x: X| -> f64 {
-        let v = value(i, x);
-        if v.is_nan() {
-            0.0
-        } else {
-            v.round().clamp(lo, hi)
-        }
-    };
-    let values = values.into_iter().enumerate();
+    let int = |v: f64| whole_in_range(v, lo, hi);
+    let values = values.into_iter();
+    // Every sample first, then the voids overwritten with the fill value.
     let mut samples = match sample_type {
-        SampleType::U8 => Samples::U8(values.map(|(i, x)| int(i, x) as u8).collect()),
-        SampleType::U16 => Samples::U16(values.map(|(i, x)| int(i, x) as u16).collect()),
-        SampleType::I16 => Samples::I16(values.map(|(i, x)| int(i, x) as i16).collect()),
-        SampleType::I32 => Samples::I32(values.map(|(i, x)| int(i, x) as i32).collect()),
-        SampleType::F32 => Samples::F32(values.map(|(i, x)| value(i, x) as f32).collect()),
+        SampleType::U8 => Samples::U8(values.map(|x| int(value_of(x)) as u8).collect()),
+        SampleType::U16 => Samples::U16(values.map(|x| int(value_of(x)) as u16).collect()),
+        SampleType::I16 => Samples::I16(values.map(|x| int(value_of(x)) as i16).collect()),
+        SampleType::I32 => Samples::I32(values.map(|x| int(value_of(x)) as i32).collect()),
+        SampleType::F32 => Samples::F32(values.map(|x| value_of(x) as f32).collect()),
     };
-    // The in-place collect keeps the input's capacity: give the surplus back.
-    match &mut samples {
+    finish(&mut samples, mask, nodata);
+    samples
+}
+
+/// [`to_samples`] of the 5/3 path's integers `q`, whose samples are `mapping.value(q)`.
+/// When the mapping is `q + offset` with a whole offset (integer rasters coded exactly),
+/// the samples are computed in integers: that sum is exact in `f64` too, so the result
+/// is the same, at a fraction of the cost.
+pub(crate) fn integer_samples(
+    sample_type: SampleType,
+    values: Vec<i32>,
+    mapping: ValueMapping,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+    nodata: Option<f64>,
+) -> Samples {
+    let general = |values| {
+        to_samples(
+            sample_type,
+            values,
+            |q| mapping.value(q as f64),
+            mask,
+            nodata,
+        )
+    };
+    // |q| < 2^31 and |offset| ≤ 2^40 keep `offset + q` far inside f64's 2^53.
+    let whole_offset = mapping.step == 1.0
+        && mapping.offset.fract() == 0.0
+        && mapping.offset.abs() <= (1u64 << 40) as f64;
+    if !whole_offset {
+        return general(values);
+    }
+    let offset = mapping.offset as i64;
+    let (lo, hi) = sample_type.value_range();
+    let (lo, hi) = (lo as i64, hi as i64);
+    let int = move |q: i32| (i64::from(q) + offset).clamp(lo, hi);
+    let values_in = values.into_iter();
+    let mut samples = match sample_type {
+        SampleType::U8 => Samples::U8(values_in.map(|q| int(q) as u8).collect()),
+        SampleType::U16 => Samples::U16(values_in.map(|q| int(q) as u16).collect()),
+        SampleType::I16 => Samples::I16(values_in.map(|q| int(q) as i16).collect()),
+        SampleType::I32 => Samples::I32(values_in.map(|q| int(q) as i32).collect()),
+        SampleType::F32 => return general(values_in.collect()),
+    };
+    finish(&mut samples, mask, nodata);
+    samples
+}
+
+/// `v` rounded and clamped to `[lo, hi]` (whole numbers); NaN gives 0.
+#[inline]
+fn whole_in_range(v: f64, lo: f64, hi: f64) -> f64 {
+    if v.is_nan() {
+        0.0
+    } else {
+        // Clamping to whole-number bounds first rounds the same.
+        round_small(v.clamp(lo, hi))
+    }
+}
+
+/// Writes the fill value into every void of `mask` (see [`to_samples`]), then gives back
+/// the capacity an in-place collect kept.
+fn finish(samples: &mut Samples, mask: Option<&BitSlice<u64, Lsb0>>, nodata: Option<f64>) {
+    let sample_type = samples.sample_type();
+    if let Some(mask) = mask {
+        let fill = match nodata {
+            Some(nd) if sample_type != SampleType::F32 || f64::from(nd as f32) == nd => nd,
+            _ => f64::NAN,
+        };
+        let (lo, hi) = sample_type.value_range();
+        let whole = whole_in_range(fill, lo, hi);
+        let voids = mask[..samples.len()].iter_zeros();
+        match samples {
+            Samples::U8(v) => voids.for_each(|i| v[i] = whole as u8),
+            Samples::U16(v) => voids.for_each(|i| v[i] = whole as u16),
+            Samples::I16(v) => voids.for_each(|i| v[i] = whole as i16),
+            Samples::I32(v) => voids.for_each(|i| v[i] = whole as i32),
+            Samples::F32(v) => voids.for_each(|i| v[i] = fill as f32),
+        }
+    }
+    match samples {
         Samples::U8(v) => v.shrink_to_fit(),
         Samples::U16(v) => v.shrink_to_fit(),
         Samples::I16(v) => v.shrink_to_fit(),
         Samples::I32(v) => v.shrink_to_fit(),
         Samples::F32(v) => v.shrink_to_fit(),
     }
-    samples
+}
+
+/// `v.round()` (halves away from zero) for `|v| < 2^62`, up to the sign of a zero result,
+/// without a call into libm: the truncation, moved away from zero when the part cut off
+/// is at least ½ (`v − trunc(v)` is exact).
+#[inline]
+fn round_small(v: f64) -> f64 {
+    let truncated = v as i64 as f64;
+    let cut = v - truncated;
+    // Without a branch: the fractions of 9/7 reconstructions are random.
+    truncated + ((cut >= 0.5) as i32 - (cut <= -0.5) as i32) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_small;
+
+    #[test]
+    fn round_small_matches_round() {
+        let halves = (-40..=40).map(|k| k as f64 * 0.25);
+        let awkward = [
+            0.499_999_999_999_999_94,
+            -0.499_999_999_999_999_94,
+            1.5 - f64::EPSILON,
+            2.5 + f64::EPSILON * 2.0,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            9_007_199_254_740_993.0,
+            2_147_483_647.4,
+            -2_147_483_648.6,
+        ];
+        for v in halves.chain(awkward) {
+            assert_eq!(round_small(v), v.round(), "{v}");
+        }
+    }
 }
