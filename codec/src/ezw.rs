@@ -352,6 +352,45 @@ impl ParentRow {
     }
 }
 
+/// Where row `y` of a band starts in the flag grid, the coefficients and the bitmaps.
+#[derive(Clone, Copy)]
+struct BandRow {
+    flag: usize,
+    index: usize,
+    bit: usize,
+    /// The band's first column in the coefficient array.
+    x0: usize,
+    /// Whether the row is neither the array's first nor its last.
+    interior_row: bool,
+    /// Width of the coefficient array.
+    width: usize,
+}
+
+impl BandRow {
+    fn new(grid: &FlagGrid, sub: Subband, y: usize, width: usize, height: usize) -> BandRow {
+        let gy = sub.y0 + y;
+        BandRow {
+            flag: grid.at(sub.x0, gy),
+            index: gy * width + sub.x0,
+            bit: grid.bit(sub.x0, gy),
+            x0: sub.x0,
+            interior_row: (1..height - 1).contains(&gy),
+            width,
+        }
+    }
+
+    /// Column `x` of the row.
+    #[inline]
+    fn at(&self, x: usize) -> At {
+        At {
+            flag: self.flag + x,
+            index: self.index + x,
+            x,
+            interior: self.interior_row && (1..self.width - 1).contains(&(self.x0 + x)),
+        }
+    }
+}
+
 /// Outcome of one scan.
 enum ScanEnd {
     Finished,
@@ -498,11 +537,7 @@ fn dominant_scan<S: Side>(
         };
         let parent = parent_band(layout, band, n);
         for y in 0..sub.height {
-            let gy = sub.y0 + y;
-            let row_f = grid.at(sub.x0, gy);
-            let row_i = gy * w + sub.x0;
-            let row_bit = grid.bit(sub.x0, gy);
-            let row_interior = (1..h - 1).contains(&gy);
+            let row = BandRow::new(grid, sub, y, w, h);
             let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
@@ -518,11 +553,11 @@ fn dominant_scan<S: Side>(
                 };
                 let live = ones(len);
                 let covered = covered & live;
-                let significant = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
                 let visited = if grid.prop_bits.is_empty() {
                     0
                 } else {
-                    extract_bits(&grid.prop_bits, row_bit + chunk, len)
+                    extract_bits(&grid.prop_bits, row.bit + chunk, len)
                 };
                 let mut todo = live & !covered & !significant;
                 // Significant coefficients pass their parent's zerotree on; new roots
@@ -532,12 +567,7 @@ fn dominant_scan<S: Side>(
                     let k = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
                     let x = chunk + k;
-                    let at = At {
-                        flag: row_f + x,
-                        index: row_i + x,
-                        x,
-                        interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
-                    };
+                    let at = row.at(x);
                     let zctx = if visited >> k & 1 != 0 {
                         if !band.has_children {
                             continue;
@@ -554,11 +584,11 @@ fn dominant_scan<S: Side>(
                             b,
                             p,
                             parent_row,
-                            row_bit + x,
+                            row.bit + x,
                         );
                         match coded {
                             None => {
-                                deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
                                 return ScanEnd::Stopped;
                             }
                             Some((true, _)) => continue,
@@ -568,12 +598,12 @@ fn dominant_scan<S: Side>(
                     };
                     let root = side.zerotree_root(at.index, n, &mut contexts.zerotree[zctx]);
                     if side.stopped() {
-                        deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                        deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     roots |= (root as u64) << k;
                 }
-                deposit_bits(&mut grid.zt_bits, row_bit + chunk, len, roots);
+                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
             }
         }
     }
@@ -596,20 +626,16 @@ fn subordinate_scan<S: Side>(
         };
         let sub = band.sub;
         for y in 0..sub.height {
-            let gy = sub.y0 + y;
-            let row_f = grid.at(sub.x0, gy);
-            let row_i = gy * w + sub.x0;
-            let row_bit = grid.bit(sub.x0, gy);
-            let row_interior = (1..h - 1).contains(&gy);
+            let row = BandRow::new(grid, sub, y, w, h);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
-                let mut todo = extract_bits(&grid.sig_bits, row_bit + chunk, len);
+                let mut todo = extract_bits(&grid.sig_bits, row.bit + chunk, len);
                 while todo != 0 {
                     let x = chunk + todo.trailing_zeros() as usize;
                     todo &= todo - 1;
-                    let fi = row_f + x;
+                    let fi = row.flag + x;
                     let f = grid.flags[fi];
-                    let i = row_i + x;
+                    let i = row.index + x;
                     // Significant since this pass: no refinement bit yet.
                     if u32::from(f >> PLANE_SHIFT) == p {
                         continue;
@@ -626,12 +652,7 @@ fn subordinate_scan<S: Side>(
                     let bit = if age == 2 {
                         side.raw_refinement(i, p)
                     } else {
-                        let at = At {
-                            flag: fi,
-                            index: i,
-                            x,
-                            interior: row_interior && (1..w - 1).contains(&(sub.x0 + x)),
-                        };
+                        let at = row.at(x);
                         let rctx = refinement_context(
                             contexts,
                             grid,

@@ -255,13 +255,7 @@ fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Ls
         Wavelet::Int53 => {
             let mut coefficients = decoder.integer_coefficients();
             wavelet::inverse_53(&mut coefficients, width, height, levels);
-            integer_samples(
-                wide_type,
-                coefficients,
-                mapping,
-                mask,
-                header.nodata,
-            )
+            integer_samples(wide_type, coefficients, mapping, mask, header.nodata)
         }
         Wavelet::Cdf97 => {
             let mut data = decoder.into_real_coefficients();
