@@ -87,25 +87,36 @@ pub(super) fn scan<S: Side>(
 }
 
 /// The coefficients of columns `chunk .. chunk + len` whose parent is significant, or
-/// all of them when the row has no parents taking part in the pass (no zerotree can
-/// cover them then).
+/// that have no parent taking part in the pass (no zerotree can cover them then): all
+/// of them when the row has none, those past the parent row's end otherwise.
 fn parent_significant(
     grid: &FlagGrid,
     parent_row: Option<super::ParentRow>,
     chunk: usize,
     len: usize,
 ) -> u64 {
-    match parent_row {
-        None => u64::MAX,
-        Some(pr) if pr.halve && chunk / 2 < pr.width => {
-            let plen = (pr.width - chunk / 2).min(32);
-            super::spread_bits(extract_bits(&grid.sig_bits, pr.bit + chunk / 2, plen) as u32)
-        }
-        Some(pr) if !pr.halve && chunk < pr.width => {
-            extract_bits(&grid.sig_bits, pr.bit + chunk, (pr.width - chunk).min(len))
-        }
-        _ => 0,
-    }
+    let Some(pr) = parent_row else {
+        return u64::MAX;
+    };
+    // Columns of this chunk with a parent, and their parents' significance.
+    let (with_parent, significant) = if pr.halve {
+        let plen = pr.width.saturating_sub(chunk / 2).min(32);
+        let bits = if plen == 0 {
+            0
+        } else {
+            extract_bits(&grid.sig_bits, pr.bit + chunk / 2, plen)
+        };
+        ((2 * plen).min(len), super::spread_bits(bits as u32))
+    } else {
+        let plen = pr.width.saturating_sub(chunk).min(len);
+        let bits = if plen == 0 {
+            0
+        } else {
+            extract_bits(&grid.sig_bits, pr.bit + chunk, plen)
+        };
+        (plen, bits)
+    };
+    significant | !ones(with_parent)
 }
 
 /// The coefficients of columns `chunk .. chunk + len` of row `y` of band `sub` that have
