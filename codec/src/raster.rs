@@ -381,22 +381,18 @@ impl Raster {
 
     /// Whether sample `index` is a valid (not nodata, not NaN) sample.
     pub fn is_valid(&self, index: usize) -> bool {
-        let v = self.samples.get_f64(index);
-        if v.is_nan() {
-            return false;
-        }
-        match self.nodata {
-            Some(nd) => v != nd,
-            None => true,
-        }
+        self.is_valid_value(self.samples.get_f64(index))
+    }
+
+    /// Whether a sample of value `v` is valid: not NaN and not the nodata value.
+    fn is_valid_value(&self, v: f64) -> bool {
+        !v.is_nan() && self.nodata.is_none_or(|nd| v != nd)
     }
 
     /// The validity mask: `true` for every valid sample.
     pub fn valid_mask(&self) -> Vec<bool> {
         // `is_valid` for every sample, in one typed loop.
-        let nodata = self.nodata;
-        self.samples
-            .map_f64(|_, v| !v.is_nan() && nodata.is_none_or(|nd| v != nd))
+        self.samples.map_f64(|_, v| self.is_valid_value(v))
     }
 
     /// The `width × height` samples whose top-left corner is (`x`, `y`), with this
