@@ -3,8 +3,9 @@
 //! untiled encode. Issue 9 asks for 10 % and 0.2 dB. Tiles overlapping by two samples
 //! (the decoder drops them) meet the first on every DEM checked here (0.76–1.02, printed
 //! with `--nocapture`; 1.83 on sthelens_10m without the overlap); the second is not met
-//! (0.27–1.23 dB on the steep DEMs: each tile codes its own coarse levels, as JPEG 2000's
-//! tiles do), so the PSNR bound checked is today's with a margin, against regressions.
+//! (0.47–0.84 dB with allocation at checkpoints inside passes: each tile codes its own
+//! coarse levels, as JPEG 2000's tiles do, and pays ~80 bytes of header, index and
+//! overlap), so the PSNR bound checked is today's with a margin, against regressions.
 
 mod support;
 
@@ -79,8 +80,8 @@ fn tile_seams_on_shared_dems() {
         );
         assert!(rmse(border) <= 1.1 * rmse(interior), "{name}: border RMSE");
         assert!(
-            rmse(all) <= 1.2 * rmse(untiled),
-            "{name}: PSNR loss over 1.6 dB"
+            rmse(all) <= 1.12 * rmse(untiled),
+            "{name}: PSNR loss over 0.98 dB"
         );
     }
 }

@@ -76,10 +76,7 @@ fn bench_one_thread(c: &mut Criterion) {
         ("srtm3_n57e011", srtm3()),
         ("synthetic 1024²", Some(synthetic())),
     ];
-    let decode_options = DecodeOptions {
-        threads: 1,
-        ..DecodeOptions::default()
-    };
+    let decode_options = DecodeOptions::default().with_threads(1);
     let mut group = c.benchmark_group("one thread");
     group.sampling_mode(SamplingMode::Flat);
     group.sample_size(10);

@@ -127,6 +127,7 @@ fn corrected_file(
         bytes,
         initial_error: stream.initial_error,
         header,
+        checkpoints: Vec::new(),
     }))
 }
 

@@ -701,6 +701,32 @@ pub struct EncodedPayload {
     pub initial_error: f64,
     /// Whether every pass down to plane 0 was coded (false when stopped at a budget).
     pub complete: bool,
+    /// Truncation points inside the passes: payload bytes and the estimated sum of
+    /// squared errors of a decode of that prefix (see [`Checkpoints`]).
+    pub checkpoints: Vec<(u64, f64)>,
+}
+
+/// Truncation points recorded as the encoder goes, for rate allocation finer than whole
+/// passes: after each coefficient's bits, once the payload has grown by a step since
+/// the last point (16 bytes, or 1/32 of the payload so far when that is more), so a
+/// stream of any length has a few hundred at most.
+#[derive(Debug, Default)]
+struct Checkpoints {
+    points: Vec<(u64, f64)>,
+    next: usize,
+}
+
+impl Checkpoints {
+    /// Smallest step between two points, in payload bytes.
+    const MIN_STEP: usize = 16;
+
+    #[inline]
+    fn observe(&mut self, bytes: usize, squared_error: f64) {
+        if bytes >= self.next {
+            self.points.push((bytes as u64, squared_error.max(0.0)));
+            self.next = bytes + (bytes / 32).max(Self::MIN_STEP);
+        }
+    }
 }
 
 /// Encoder side: codes the true coefficients and tracks the squared error.
@@ -718,6 +744,7 @@ struct EncoderSide<'a, B: BitSink> {
     budget: Option<usize>,
     over_budget: bool,
     midpoint: Midpoint,
+    checkpoints: Checkpoints,
 }
 
 impl<B: BitSink> EncoderSide<'_, B> {
@@ -779,6 +806,8 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         let known = m >> p << p;
         let after = m as f64 - self.midpoint.value(known, p);
         self.squared_error += (after * after - before * before) * self.band_weights[band];
+        self.checkpoints
+            .observe(self.sink.bytes_so_far(), self.squared_error);
     }
     #[inline]
     fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool) {
@@ -792,6 +821,8 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         let known = m >> p << p;
         let after = m as f64 - self.midpoint.value(known, p);
         self.squared_error += (after * after - before * before) * self.band_weights[band];
+        self.checkpoints
+            .observe(self.sink.bytes_so_far(), self.squared_error);
     }
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
@@ -919,6 +950,7 @@ pub fn encode(
         budget: budget.map(|b| b + 8),
         over_budget: false,
         midpoint,
+        checkpoints: Checkpoints::default(),
     };
     let mut contexts = Contexts::default();
     let (side, passes, complete) = run_encoder(layout, side, top, &mut contexts);
@@ -927,12 +959,19 @@ pub fn encode(
     for pass in &mut passes {
         pass.end_byte = pass.end_byte.min(bytes.len() as u64);
     }
+    let checkpoints = side
+        .checkpoints
+        .points
+        .into_iter()
+        .filter(|&(end, _)| end <= bytes.len() as u64)
+        .collect();
     EncodedPayload {
         bytes,
         top_plane: top,
         passes,
         initial_error,
         complete,
+        checkpoints,
     }
 }
 
@@ -1022,6 +1061,7 @@ fn measuring_side<'a, B: BitSink>(
         budget: None,
         over_budget: false,
         midpoint: Midpoint::Integer,
+        checkpoints: Checkpoints::default(),
     }
 }
 
@@ -1428,5 +1468,47 @@ mod tests {
             assert_eq!(prefix.passes_completed, k as u32 + 1);
         }
         assert_eq!(enc.passes.last().unwrap().squared_error, 0.0);
+    }
+
+    #[test]
+    fn checkpoints_track_the_error_of_their_prefixes() {
+        let (w, h) = (64, 64);
+        let c = pseudo_random(w * h, 9, 30000);
+        let layout = layout_for(w, h, 4, |_| 0);
+        let weights = vec![1.0; layout.bands.len()];
+        let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
+        assert!(
+            enc.checkpoints.len() > 2 * enc.passes.len(),
+            "{}",
+            enc.checkpoints.len()
+        );
+        let mut last = (0, f64::INFINITY);
+        for &(end, estimate) in &enc.checkpoints {
+            assert!(
+                end > last.0 && estimate <= last.1,
+                "{end} {estimate} after {last:?}"
+            );
+            last = (end, estimate);
+            let prefix = &enc.bytes[..end as usize];
+            let dec = Decoder::run(
+                &layout,
+                Coder::default(),
+                prefix,
+                false,
+                enc.top_plane,
+                None,
+            );
+            let err: f64 = dec
+                .integer_coefficients()
+                .iter()
+                .zip(&c)
+                .map(|(&a, &b)| ((a - b) as f64).powi(2))
+                .sum();
+            // The prefix may hold a decision or two past the checkpoint.
+            assert!(
+                (err - estimate).abs() <= 0.02 * estimate + 1.0,
+                "prefix of {end} bytes: error {err}, checkpoint says {estimate}"
+            );
+        }
     }
 }

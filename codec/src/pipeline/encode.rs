@@ -28,6 +28,9 @@ pub struct Encoded {
     /// Estimated sum of squared errors of a decode of no pass (the start of the
     /// rate–distortion ladder).
     pub initial_error: f64,
+    /// Truncation points inside the passes (payload bytes, estimated squared error),
+    /// for allocating a budget across tiles; not stored in the file.
+    pub(crate) checkpoints: Vec<(u64, f64)>,
 }
 
 /// Encodes a raster into a `.ezw` file.
@@ -191,12 +194,19 @@ pub(crate) fn encode_stream(
         payload_budget(&header, sections.mask.len(), budget)?,
     );
     let initial_error = payload.initial_error;
+    let mut checkpoints = payload.checkpoints.clone();
     fit_to_budget(&mut header, &mut sections, payload, budget);
-    Ok(assemble(header, sections, initial_error))
+    checkpoints.retain(|&(end, _)| end <= sections.payload.len() as u64);
+    Ok(assemble(header, sections, (initial_error, checkpoints)))
 }
 
-/// The file of `header` and `sections`, and the sections a corrected file reuses.
-fn assemble(mut header: Header, sections: Sections, initial_error: f64) -> (Encoded, Parts) {
+/// The file of `header` and `sections`, and the sections a corrected file reuses;
+/// `estimates` are the payload's initial error and checkpoints.
+fn assemble(
+    mut header: Header,
+    sections: Sections,
+    (initial_error, checkpoints): (f64, Vec<(u64, f64)>),
+) -> (Encoded, Parts) {
     let (bytes, header_len) = container::assemble(
         &mut header,
         &sections.mask,
@@ -208,6 +218,7 @@ fn assemble(mut header: Header, sections: Sections, initial_error: f64) -> (Enco
         bytes,
         header,
         initial_error,
+        checkpoints,
     };
     let parts = Parts {
         mask: sections.mask,

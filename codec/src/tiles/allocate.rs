@@ -11,11 +11,18 @@ use super::index::TileEntry;
 /// until the budget runs out (the last one in part: streams are embedded). `None` when
 /// the budget does not cover the tiles' headers and masks.
 pub fn allocate(entries: &[TileEntry], lossless: bool, budget: u64) -> Option<Vec<u64>> {
-    let mut bytes: Vec<u64> = entries.iter().map(|e| e.head_len).collect();
+    let points: Vec<Vec<(u64, f64)>> = entries.iter().map(|e| e.points(lossless)).collect();
+    allocate_points(&points, budget)
+}
+
+/// [`allocate`] over each tile's rate–distortion points, sorted by prefix length, the
+/// first being its header and mask.
+pub(crate) fn allocate_points(tiles: &[Vec<(u64, f64)>], budget: u64) -> Option<Vec<u64>> {
+    let mut bytes: Vec<u64> = tiles.iter().map(|points| points[0].0).collect();
     let mut left = budget.checked_sub(bytes.iter().sum())?;
     let mut steps: Vec<Step> = Vec::new();
-    for (tile, entry) in entries.iter().enumerate() {
-        let hull = lower_hull(&entry.points(lossless));
+    for (tile, points) in tiles.iter().enumerate() {
+        let hull = lower_hull(points);
         for pair in hull.windows(2) {
             steps.push(Step::between(tile, pair[0], pair[1]));
         }
@@ -116,6 +123,22 @@ mod tests {
         assert_eq!(allocate(&tiles, true, 10 + 150), Some(vec![105, 55]));
         assert_eq!(allocate(&tiles, true, 1000), Some(vec![105, 105]));
         assert_eq!(allocate(&tiles, true, 9), None);
+    }
+
+    #[test]
+    fn a_checkpoint_inside_a_pass_lets_a_tile_stop_there() {
+        // Tile 0 removes most of its error in the first 10 bytes of its pass: with the
+        // checkpoint it is served before tile 1's flatter pass, without it they tie.
+        let with = [
+            vec![(10, 100.0), (20, 20.0), (110, 0.0)],
+            vec![(10, 100.0), (110, 0.0)],
+        ];
+        assert_eq!(allocate_points(&with, 40), Some(vec![20, 20]));
+        let without = [
+            with[0][..1].iter().chain(&with[0][2..]).copied().collect(),
+            with[1].clone(),
+        ];
+        assert_eq!(allocate_points(&without, 40), Some(vec![30, 10]));
     }
 
     #[test]

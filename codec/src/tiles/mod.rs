@@ -14,6 +14,7 @@ mod workers;
 use std::io;
 
 pub use allocate::allocate;
+use allocate::allocate_points;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
 pub use stream::{encode_tile, EncodedTile, TileSummary};
@@ -338,6 +339,7 @@ pub(crate) fn encode(
         header,
         header_len,
         initial_error: summaries.iter().map(|t| t.entry.initial_error).sum(),
+        checkpoints: Vec::new(),
     })
 }
 
@@ -427,23 +429,36 @@ pub(crate) fn starved_tiles(
     budget: u64,
 ) -> Result<Vec<(usize, u64)>, CodecError> {
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-    let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
-    let lossless = weakest_mode(&summaries) == Mode::Lossless;
+    let points = tile_points(tiles, &summaries);
     let reserve = tiled_head(info, grid, &summaries).len() as u64;
     let Some(lengths) = budget
         .checked_sub(reserve)
-        .and_then(|left| allocate(&entries, lossless, left))
+        .and_then(|left| allocate_points(&points, left))
     else {
         return Ok(Vec::new());
     };
     let mut starved = Vec::new();
     for (k, tile) in tiles.iter().enumerate() {
-        let known = tile.summary.entry.passes.last().map_or(0, |p| p.0);
+        let known = tile
+            .summary
+            .entry
+            .passes
+            .iter()
+            .chain(&tile.checkpoints)
+            .map(|p| p.0)
+            .max()
+            .unwrap_or(0);
         if lengths[k] >= known && Header::parse(&tile.bytes)?.0.payload_truncated {
             starved.push((k, 4 * tile.bytes.len() as u64));
         }
     }
     Ok(starved)
+}
+
+/// Each tile's rate–distortion points (see [`EncodedTile::points`]).
+fn tile_points(tiles: &[EncodedTile], summaries: &[TileSummary]) -> Vec<Vec<(u64, f64)>> {
+    let lossless = weakest_mode(summaries) == Mode::Lossless;
+    tiles.iter().map(|t| t.points(lossless)).collect()
 }
 
 /// The cut of [`cut_to_budget`], once no cap limits a tile.
@@ -454,8 +469,7 @@ fn cut_recoded(
     budget: u64,
 ) -> Result<Vec<EncodedTile>, CodecError> {
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-    let entries: Vec<TileEntry> = summaries.iter().map(|t| t.entry.clone()).collect();
-    let lossless = weakest_mode(&summaries) == Mode::Lossless;
+    let points = tile_points(&tiles, &summaries);
     let bare: Vec<TileSummary> = summaries
         .iter()
         .map(|t| {
@@ -465,7 +479,7 @@ fn cut_recoded(
         })
         .collect();
     let mut reserve = tiled_head(info, grid, &bare).len() as u64;
-    let least = reserve + entries.iter().map(|e| e.head_len).sum::<u64>();
+    let least = reserve + points.iter().map(|p| p[0].0).sum::<u64>();
     let too_small = || {
         CodecError::InvalidParameters(format!(
             "a budget of {budget} bytes is smaller than the headers, index and nodata masks ({least} bytes)"
@@ -474,7 +488,7 @@ fn cut_recoded(
     for _ in 0..8 {
         let lengths = budget
             .checked_sub(reserve)
-            .and_then(|left| allocate(&entries, lossless, left))
+            .and_then(|left| allocate_points(&points, left))
             .ok_or_else(too_small)?;
         let cut = tiles
             .iter()

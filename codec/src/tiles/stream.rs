@@ -32,6 +32,20 @@ pub struct EncodedTile {
     pub bytes: Vec<u8>,
     /// What the index and header need.
     pub summary: TileSummary,
+    /// Truncation points inside its passes (prefix length, estimated squared error),
+    /// for the allocation of a budget; not stored in the file.
+    pub(crate) checkpoints: Vec<(u64, f64)>,
+}
+
+impl EncodedTile {
+    /// Every rate–distortion point the allocation may stop at, by prefix length: the
+    /// index entry's (see [`TileEntry::points`]) and the checkpoints inside passes.
+    pub(crate) fn points(&self, lossless: bool) -> Vec<(u64, f64)> {
+        let mut points = self.summary.entry.points(lossless);
+        points.extend_from_slice(&self.checkpoints);
+        points.sort_by_key(|&(end, _)| end);
+        points
+    }
 }
 
 /// Encodes one tile (a raster cut from the whole, without georeferencing) as `options`
@@ -64,12 +78,14 @@ pub fn encode_tile(
 }
 
 /// `tile` cut to at most `len` bytes: a shorter prefix of its payload, decoded as a
-/// truncated stream (the residual section goes, and with it any error guarantee).
+/// truncated stream (the residual section goes, and with it any error guarantee). The
+/// cut keeps no checkpoints: it is what goes into the file.
 pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedTile, CodecError> {
     if len >= tile.len() as u64 {
         return Ok(EncodedTile {
             bytes: tile.to_vec(),
             summary: summary.clone(),
+            checkpoints: Vec::new(),
         });
     }
     let (header, header_len) = Header::parse(tile)?;
@@ -78,6 +94,7 @@ pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedT
         header,
         header_len,
         initial_error: summary.entry.initial_error,
+        checkpoints: Vec::new(),
     };
     // The ladder left the stream when it was first laid out: the index has the passes.
     let passes = summary
@@ -126,11 +143,15 @@ fn lay_out(
     }
     let (bytes, header_len) = assemble(&mut header, &mask, &payload, &residual);
     let head_len = (header_len + header.mask_len as usize) as u64;
-    let passes = passes
-        .into_iter()
-        .filter(|&(end, _)| end <= payload.len() as u64)
-        .map(|(end, error)| (head_len + physical_offset(end), error))
-        .collect();
+    let in_tile = |points: &[(u64, f64)]| -> Vec<(u64, f64)> {
+        points
+            .iter()
+            .filter(|&&(end, _)| end <= payload.len() as u64)
+            .map(|&(end, error)| (head_len + physical_offset(end), error))
+            .collect()
+    };
+    let passes = in_tile(&passes);
+    let checkpoints = in_tile(&encoded.checkpoints);
     let summary = TileSummary {
         entry: TileEntry {
             len: bytes.len() as u64,
@@ -144,7 +165,11 @@ fn lay_out(
         wavelet: header.wavelet,
         levels: header.levels,
     };
-    Ok(EncodedTile { bytes, summary })
+    Ok(EncodedTile {
+        bytes,
+        summary,
+        checkpoints,
+    })
 }
 
 /// The largest `p ≤ max` with `fits(p)` (`fits` holds up to some point, then not); 0
