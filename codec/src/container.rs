@@ -100,6 +100,10 @@ pub struct Header {
     pub coder: Coder,
     /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
     pub bands: Vec<(u8, f64)>,
+    /// The bands a decoder derives for this header's size, levels and wavelet (see
+    /// [`derived_bands`]), when the encoder or the parser already computed them: a
+    /// written header leaves `bands` out when they equal these.
+    pub(crate) derived: Option<DerivedBands>,
     /// Bytes of the payload in the file (framed: with its chunk checksums).
     pub payload_len: u64,
     /// The payload is a prefix of a longer embedded stream (the encoder stopped at a byte
@@ -175,6 +179,7 @@ impl Header {
             top_plane: None,
             coder: crate::ezw::Coder::default(),
             bands: Vec::new(),
+            derived: None,
             payload_len: 0,
             payload_truncated: false,
             mask_len: 0,
@@ -380,7 +385,62 @@ fn derived_bands(wavelet: Wavelet, width: u32, height: u32, levels: u8) -> Optio
         return None;
     }
     let norms = wavelet::coding_norms(wavelet, width as usize, height as usize, levels.into());
-    Some(match wavelet {
+    Some(bands_from_norms(wavelet, norms))
+}
+
+/// The bands a decoder derives for a header, kept with what they were derived for.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct DerivedBands {
+    /// Wavelet, width, height and levels they were derived for.
+    key: (Wavelet, u32, u32, u8),
+    bands: Vec<(u8, f64)>,
+}
+
+impl DerivedBands {
+    /// The derived bands of `header`'s size from the coding norms of that size (the
+    /// encoder's, so nobody computes them again); `None` above [`MAX_DERIVED_SIDE`].
+    pub(crate) fn from_norms(header: &Header, norms: Vec<f64>) -> Option<DerivedBands> {
+        (header.width.max(header.height) <= MAX_DERIVED_SIDE).then(|| DerivedBands {
+            key: derivation_key(header),
+            bands: bands_from_norms(header.wavelet, norms),
+        })
+    }
+
+    /// `header`'s bands, which a parser derived (the header did not list them).
+    pub(crate) fn as_read(header: &Header) -> DerivedBands {
+        DerivedBands {
+            key: derivation_key(header),
+            bands: header.bands.clone(),
+        }
+    }
+
+    /// The derived bands of `header`'s size, computed.
+    fn of(header: &Header) -> Option<DerivedBands> {
+        let (wavelet, width, height, levels) = derivation_key(header);
+        derived_bands(wavelet, width, height, levels).map(|bands| DerivedBands {
+            key: derivation_key(header),
+            bands,
+        })
+    }
+}
+
+fn derivation_key(header: &Header) -> (Wavelet, u32, u32, u8) {
+    (header.wavelet, header.width, header.height, header.levels)
+}
+
+/// Whether `header`'s bands are the ones a decoder derives from its size (computed only
+/// when the header does not carry them for its current size).
+fn bands_derivable(header: &Header) -> bool {
+    let matches = |d: &DerivedBands| d.key == derivation_key(header) && d.bands == header.bands;
+    match &header.derived {
+        Some(d) if d.key == derivation_key(header) => matches(d),
+        _ => DerivedBands::of(header).is_some_and(|d| matches(&d)),
+    }
+}
+
+/// The subband shifts (5/3) or scales (9/7, as stored) of coding norms `norms`.
+fn bands_from_norms(wavelet: Wavelet, norms: Vec<f64>) -> Vec<(u8, f64)> {
+    match wavelet {
         Wavelet::Int53 => wavelet::plane_shifts(&norms)
             .into_iter()
             .map(|shift| (shift.min(u8::MAX.into()) as u8, 1.0))
@@ -389,7 +449,7 @@ fn derived_bands(wavelet: Wavelet, width: u32, height: u32, levels: u8) -> Optio
             .into_iter()
             .map(|n| (0, scale_from_u16(scale_to_u16(n))))
             .collect(),
-    })
+    }
 }
 
 /// Reads the four one-byte codes: sample type, wavelet, levels, mode.
@@ -862,6 +922,7 @@ mod tests {
             top_plane: Some(17),
             coder: Coder::V2,
             bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
+            derived: None,
             payload_len: 12345,
             payload_truncated: false,
             mask_len: 17,
@@ -1061,6 +1122,31 @@ mod tests {
             let (bytes, listed_len) = assemble(&mut h, &[0], &[1, 2, 3], &[9, 9]);
             assert!(listed_len > implied_len, "{sample_type:?}");
             assert_eq!(Header::parse(&bytes).unwrap().0.correction_step, step * 1.5);
+        }
+    }
+
+    #[test]
+    fn derived_bands_are_left_out_only_when_they_are_those_of_the_size() {
+        let mut h = sample_header();
+        h.wavelet = Wavelet::Cdf97;
+        h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
+        let computed = h.to_bytes();
+        h.derived = Some(DerivedBands::as_read(&h));
+        assert_eq!(h.to_bytes(), computed);
+        let (parsed, _) = Header::parse(&computed).unwrap();
+        assert_eq!((&parsed.bands, &parsed.derived), (&h.bands, &h.derived));
+        // Bands changed after the derivation: listed.
+        let mut other = h.clone();
+        other.bands[0].1 *= 2.0;
+        let bytes = other.to_bytes();
+        assert!(bytes.len() > computed.len());
+        assert_eq!(Header::parse(&bytes).unwrap().0.bands, other.bands);
+        // Another size: listed unless that size derives the same bands.
+        for (width, height) in [(h.width + 40, h.height), (9, 300), (100_000, 8)] {
+            let mut resized = h.clone();
+            (resized.width, resized.height) = (width, height);
+            let (parsed, _) = Header::parse(&resized.to_bytes()).unwrap();
+            assert_eq!(parsed.bands, h.bands, "{width}x{height}");
         }
     }
 

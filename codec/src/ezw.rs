@@ -693,8 +693,6 @@ pub struct PassRecord {
 pub struct EncodedPayload {
     /// The arithmetic-coded payload.
     pub bytes: Vec<u8>,
-    /// Highest global plane (the first pass); `None` when every coefficient is zero.
-    pub top_plane: Option<u32>,
     /// One record per completed pass.
     pub passes: Vec<PassRecord>,
     /// Estimated sum of squared pixel errors before the first pass.
@@ -908,7 +906,8 @@ pub fn top_plane(layout: &CoefficientLayout, coefficients: &[i32]) -> Option<u32
     top
 }
 
-/// Encodes `coefficients` (all magnitudes below 2^31) into an embedded payload.
+/// Encodes `coefficients` (all magnitudes below 2^31) into an embedded payload whose
+/// first pass is `top`, their [`top_plane`] (the caller has it for the header).
 ///
 /// `band_weights[b]` is the squared synthesis norm of band `b` divided by the squared
 /// quantiser scale, used only for the distortion estimates in [`PassRecord`].
@@ -917,6 +916,7 @@ pub fn top_plane(layout: &CoefficientLayout, coefficients: &[i32]) -> Option<u32
 pub fn encode(
     layout: &CoefficientLayout,
     coefficients: &[i32],
+    top: Option<u32>,
     band_weights: &[f64],
     midpoint: Midpoint,
     budget: Option<usize>,
@@ -939,7 +939,7 @@ pub fn encode(
             sum * weight
         })
         .sum();
-    let top = top_plane(layout, coefficients);
+    debug_assert_eq!(top, top_plane(layout, coefficients));
     let side = EncoderSide {
         sink: ArithmeticEncoder::new(),
         coefficients,
@@ -967,7 +967,6 @@ pub fn encode(
         .collect();
     EncodedPayload {
         bytes,
-        top_plane: top,
         passes,
         initial_error,
         complete,
@@ -1300,14 +1299,21 @@ mod tests {
     ) {
         let layout = layout_for(w, h, levels, shift);
         let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(&layout, coefficients, &weights, Midpoint::Integer, None);
+        let enc = encode(
+            &layout,
+            coefficients,
+            top_plane(&layout, coefficients),
+            &weights,
+            Midpoint::Integer,
+            None,
+        );
         assert!(enc.complete);
         let dec = Decoder::run(
             &layout,
             Coder::default(),
             &enc.bytes,
             true,
-            enc.top_plane,
+            top_plane(&layout, coefficients),
             None,
         );
         assert!(dec.complete);
@@ -1387,7 +1393,14 @@ mod tests {
         let c = pseudo_random(w * h, 7, 3000);
         let layout = layout_for(w, h, levels, |s| s.level);
         let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
+        let enc = encode(
+            &layout,
+            &c,
+            top_plane(&layout, &c),
+            &weights,
+            Midpoint::Integer,
+            None,
+        );
         let mut previous = f64::INFINITY;
         for cut in (0..=enc.bytes.len()).step_by(7).chain([enc.bytes.len()]) {
             let complete = cut == enc.bytes.len();
@@ -1396,7 +1409,7 @@ mod tests {
                 Coder::default(),
                 &enc.bytes[..cut],
                 complete,
-                enc.top_plane,
+                top_plane(&layout, &c),
                 None,
             );
             let rec = dec.integer_coefficients();
@@ -1422,8 +1435,22 @@ mod tests {
         let c = pseudo_random(w * h, 3, 20000);
         let layout = layout_for(w, h, 4, |_| 0);
         let weights = vec![1.0; layout.bands.len()];
-        let full = encode(&layout, &c, &weights, Midpoint::Integer, None);
-        let cut = encode(&layout, &c, &weights, Midpoint::Integer, Some(500));
+        let full = encode(
+            &layout,
+            &c,
+            top_plane(&layout, &c),
+            &weights,
+            Midpoint::Integer,
+            None,
+        );
+        let cut = encode(
+            &layout,
+            &c,
+            top_plane(&layout, &c),
+            &weights,
+            Midpoint::Integer,
+            Some(500),
+        );
         assert!(!cut.complete);
         assert!(cut.bytes.len() >= 500 && cut.bytes.len() < full.bytes.len());
         assert_eq!(&cut.bytes[..500], &full.bytes[..500]);
@@ -1435,14 +1462,21 @@ mod tests {
         let c = pseudo_random(w * h, 5, 4000);
         let layout = layout_for(w, h, 3, |_| 0);
         let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
+        let enc = encode(
+            &layout,
+            &c,
+            top_plane(&layout, &c),
+            &weights,
+            Midpoint::Integer,
+            None,
+        );
         for (k, record) in enc.passes.iter().enumerate() {
             let dec = Decoder::run(
                 &layout,
                 Coder::default(),
                 &enc.bytes,
                 true,
-                enc.top_plane,
+                top_plane(&layout, &c),
                 Some(k as u32 + 1),
             );
             let rec = dec.integer_coefficients();
@@ -1462,7 +1496,7 @@ mod tests {
                 Coder::default(),
                 &enc.bytes[..record.end_byte as usize],
                 record.end_byte as usize == enc.bytes.len(),
-                enc.top_plane,
+                top_plane(&layout, &c),
                 Some(k as u32 + 1),
             );
             assert_eq!(prefix.passes_completed, k as u32 + 1);
@@ -1476,7 +1510,14 @@ mod tests {
         let c = pseudo_random(w * h, 9, 30000);
         let layout = layout_for(w, h, 4, |_| 0);
         let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(&layout, &c, &weights, Midpoint::Integer, None);
+        let enc = encode(
+            &layout,
+            &c,
+            top_plane(&layout, &c),
+            &weights,
+            Midpoint::Integer,
+            None,
+        );
         assert!(
             enc.checkpoints.len() > 2 * enc.passes.len(),
             "{}",
@@ -1495,7 +1536,7 @@ mod tests {
                 Coder::default(),
                 prefix,
                 false,
-                enc.top_plane,
+                top_plane(&layout, &c),
                 None,
             );
             let err: f64 = dec

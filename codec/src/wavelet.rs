@@ -32,8 +32,6 @@
 //! de-interleaved) into a scratch buffer where each lifting step is one flat, vectorisable
 //! loop over all lanes, then scattered back. Scratch memory is allocated once per call.
 
-use std::sync::Mutex;
-
 /// Which wavelet a stream uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Wavelet {
@@ -275,26 +273,11 @@ pub fn synthesis_norms(wavelet: Wavelet, width: usize, height: usize, levels: u3
 
 /// The norms the coder weighs subbands by: [`synthesis_norms`], with empty subbands (which
 /// have no norm to speak of) given 1 so shifts and scales stay sane.
-///
-/// The last result is kept: an encode asks for the same norms each time it sizes or
-/// writes a header (a dozen times when a budget cuts the stream), a few percent of a
-/// 9/7 encode when recomputed.
 pub fn coding_norms(wavelet: Wavelet, width: usize, height: usize, levels: u32) -> Vec<f64> {
-    type Key = (Wavelet, usize, usize, u32);
-    static LAST: Mutex<Option<(Key, Vec<f64>)>> = Mutex::new(None);
-    let key = (wavelet, width, height, levels);
-    let last = || LAST.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    if let Some((k, norms)) = last().as_ref() {
-        if *k == key {
-            return norms.clone();
-        }
-    }
-    let norms: Vec<f64> = synthesis_norms(wavelet, width, height, levels)
+    synthesis_norms(wavelet, width, height, levels)
         .into_iter()
         .map(|n| if n.is_finite() && n > 0.0 { n } else { 1.0 })
-        .collect();
-    *last() = Some((key, norms.clone()));
-    norms
+        .collect()
 }
 
 /// The 5/3 coder's per-subband plane shifts: each norm relative to the smallest, in whole

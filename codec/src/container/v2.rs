@@ -239,8 +239,7 @@ fn flags(header: &Header) -> u64 {
 /// Whether the subband shifts and scales must be listed: they are not the ones a decoder
 /// derives from the dimensions (see [`derived_bands`]).
 fn bands_listed(header: &Header) -> bool {
-    derived_bands(header.wavelet, header.width, header.height, header.levels)
-        .is_none_or(|derived| derived != header.bands)
+    !super::bands_derivable(header)
 }
 
 /// The bound of a lossless stream is 0 and of a lossy one +∞; others are listed.
@@ -353,7 +352,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
     let (residual_len, correction_step) = read_residual(r, flags, (mode, sample_type, max_error))?;
     let ladder_len = r.varint_u32("ladder length")?;
     let (georef, metadata) = read_gis(r, flags)?;
-    let header = Header {
+    let mut header = Header {
         width,
         height,
         sample_type,
@@ -368,6 +367,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         top_plane,
         coder,
         bands,
+        derived: None,
         payload_len,
         payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
         mask_len,
@@ -379,6 +379,9 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         metadata,
         tiling: None,
     };
+    if flags & flag::BANDS_LISTED == 0 {
+        header.derived = Some(super::DerivedBands::as_read(&header));
+    }
     Ok((header, flags & flag::RANGE_IN_LADDER != 0))
 }
 

@@ -183,12 +183,14 @@ pub(crate) fn encode_stream(
         has_voids,
         top,
     );
+    header.derived = container::DerivedBands::from_norms(&header, norms);
     header.mask_len = sections.mask.len() as u32;
     header.residual_len = sections.residual.len() as u32;
     let budget = options.budget_bytes.map(|b| b as usize);
     let payload = ezw::encode(
         &layout,
         &prepared.coefficients,
+        top,
         &prepared.distortion_weights,
         prepared.midpoint,
         payload_budget(&header, sections.mask.len(), budget)?,
