@@ -162,14 +162,7 @@ fn bench_ezw(c: &mut Criterion) {
     let encode = || ezw::encode(layout, coefficients, top, weights, Midpoint::Integer, None);
     let encoded = encode();
     assert!(encoded.complete);
-    let decoded = Decoder::run(
-        layout,
-        Coder::default(),
-        &encoded.bytes,
-        true,
-        top,
-        None,
-    );
+    let decoded = Decoder::run(layout, Coder::default(), &encoded.bytes, true, top, None);
     assert!(decoded.complete);
     assert_eq!(
         &decoded.integer_coefficients(),

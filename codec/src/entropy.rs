@@ -203,11 +203,13 @@ impl BitSink for ArithmeticEncoder {
 }
 
 /// Sums the ideal code length (−log2 p) of every decision instead of producing bytes.
+#[cfg(any(test, feature = "internals", feature = "research"))]
 #[derive(Debug, Default, Clone)]
 pub struct BitCounter {
     bits: f64,
 }
 
+#[cfg(any(test, feature = "internals", feature = "research"))]
 impl BitCounter {
     /// A counter at zero.
     pub fn new() -> BitCounter {
@@ -220,6 +222,7 @@ impl BitCounter {
     }
 }
 
+#[cfg(any(test, feature = "internals", feature = "research"))]
 impl BitSink for BitCounter {
     #[inline]
     fn encode(&mut self, bit: bool, model: &mut BitModel) {
@@ -323,11 +326,6 @@ impl<'a> ArithmeticDecoder<'a> {
     #[inline]
     pub fn exhausted(&self) -> bool {
         !self.complete && self.pos > self.len
-    }
-
-    /// Bytes of input consumed so far (may exceed the input length by the zero padding).
-    pub fn position(&self) -> usize {
-        self.pos
     }
 
     #[inline]

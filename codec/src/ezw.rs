@@ -35,7 +35,9 @@
 //! coefficient with the bits it has (reconstructed mid-interval by
 //! [`Decoder::into_real_coefficients`] and [`Decoder::integer_coefficients`]).
 
-use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitCounter, BitModel, BitSink};
+#[cfg(any(feature = "internals", feature = "research"))]
+use crate::entropy::BitCounter;
+use crate::entropy::{ArithmeticDecoder, ArithmeticEncoder, BitModel, BitSink};
 use crate::progress::Stage;
 use crate::significance::SignificanceMap;
 use crate::wavelet::{Orientation, Subband};
@@ -43,11 +45,13 @@ use crate::wavelet::{Orientation, Subband};
 mod contexts;
 mod priors;
 mod propagation;
+#[cfg(feature = "research")]
+mod training;
 
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
-use priors::TallySink;
-pub use priors::{PriorTally, PRIOR_WINDOW};
+#[cfg(feature = "research")]
+pub use training::{tally_priors, PriorTally, PRIOR_WINDOW};
 
 /// Flag bits kept per coefficient during a scan.
 const SIG: u8 = 1; // significant
@@ -165,6 +169,7 @@ impl CoefficientLayout {
     }
 
     /// Whether the layout is empty.
+    #[cfg(feature = "internals")]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -700,7 +705,7 @@ pub struct EncodedPayload {
     /// Whether every pass down to plane 0 was coded (false when stopped at a budget).
     pub complete: bool,
     /// Truncation points inside the passes: payload bytes and the estimated sum of
-    /// squared errors of a decode of that prefix (see [`Checkpoints`]).
+    /// squared errors of a decode of that prefix (a few hundred at most).
     pub checkpoints: Vec<(u64, f64)>,
 }
 
@@ -1017,6 +1022,7 @@ fn run_encoder<'a, B: BitSink>(
     (side, passes, complete)
 }
 
+#[cfg(any(feature = "internals", feature = "research"))]
 /// Ideal code length in bits of the complete stream for `coefficients` with coder 2's
 /// models selected by `choice` (no bytes are produced): what each context buys is the
 /// difference to [`ContextChoice::ALL`].
@@ -1030,18 +1036,7 @@ pub fn count_bits(layout: &CoefficientLayout, coefficients: &[i32], choice: Cont
     side.sink.bits()
 }
 
-/// Adds to `tally` the first decisions of every model of coder 2 in the complete stream
-/// for `coefficients` (see [`PriorTally`]).
-pub fn tally_priors(layout: &CoefficientLayout, coefficients: &[i32], tally: &mut PriorTally) {
-    let descendants = descendant_masks(layout, coefficients);
-    let mut contexts = Contexts::new(Coder::V2, ContextChoice::ALL);
-    let weights = vec![0.0; layout.bands.len()];
-    let side = measuring_side(TallySink::default(), coefficients, &descendants, &weights);
-    let top = top_plane(layout, coefficients);
-    let (side, _, _) = run_encoder(layout, side, top, &mut contexts);
-    tally.add(&contexts, &side.sink);
-}
-
+#[cfg(any(feature = "internals", feature = "research"))]
 /// An encoder side over `sink` that only measures (`band_weights` zero: no distortion
 /// bookkeeping).
 fn measuring_side<'a, B: BitSink>(
@@ -1137,6 +1132,7 @@ impl Decoder {
     /// Decodes `payload` (all of it when `payload_complete`, else a prefix) for a stream
     /// whose first pass is `top_plane` (`None`: every coefficient is zero), stopping after
     /// `max_passes` passes if given.
+    #[cfg(any(test, feature = "internals"))]
     pub fn run(
         layout: &CoefficientLayout,
         coder: Coder,

@@ -55,13 +55,11 @@ mod corrections;
 #[cfg(feature = "internals")]
 pub mod entropy;
 #[cfg(not(feature = "internals"))]
-#[allow(dead_code)] // A few of its items serve only the benches and the research hooks.
 mod entropy;
 mod error;
 #[cfg(feature = "internals")]
 pub mod ezw;
 #[cfg(not(feature = "internals"))]
-#[allow(dead_code, unused_imports)] // Some items serve only the benches and research hooks.
 mod ezw;
 pub mod format;
 #[cfg(feature = "fuzzing")]

@@ -32,6 +32,7 @@ impl ContextChoice {
         refinement_age: true,
     };
     /// One model per decision kind.
+    #[cfg(feature = "research")]
     pub const NONE: ContextChoice = ContextChoice {
         subband_class: false,
         neighbours: false,
@@ -116,6 +117,7 @@ impl Contexts {
     }
 
     /// The four groups of models, in the order of the prior tables.
+    #[cfg(feature = "research")]
     pub(super) fn groups(&self) -> [&[BitModel]; 4] {
         [
             &self.significance,
