@@ -1268,6 +1268,23 @@ mod tests {
         CoefficientLayout::new(w, h, &subs, &shifts)
     }
 
+    /// The payload of `c` with every band weighing 1 and integer midpoints.
+    fn unit_weight_encode(
+        layout: &CoefficientLayout,
+        c: &[i32],
+        budget: Option<usize>,
+    ) -> EncodedPayload {
+        let weights = vec![1.0; layout.bands.len()];
+        encode(
+            layout,
+            c,
+            top_plane(layout, c),
+            &weights,
+            Midpoint::Integer,
+            budget,
+        )
+    }
+
     fn pseudo_random(n: usize, seed: u64, scale: i32) -> Vec<i32> {
         let mut s = seed;
         (0..n)
@@ -1294,15 +1311,7 @@ mod tests {
         shift: impl Fn(&Subband) -> u32,
     ) {
         let layout = layout_for(w, h, levels, shift);
-        let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(
-            &layout,
-            coefficients,
-            top_plane(&layout, coefficients),
-            &weights,
-            Midpoint::Integer,
-            None,
-        );
+        let enc = unit_weight_encode(&layout, coefficients, None);
         assert!(enc.complete);
         let dec = Decoder::run(
             &layout,
@@ -1388,15 +1397,7 @@ mod tests {
         let (w, h, levels) = (40, 30, 3);
         let c = pseudo_random(w * h, 7, 3000);
         let layout = layout_for(w, h, levels, |s| s.level);
-        let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(
-            &layout,
-            &c,
-            top_plane(&layout, &c),
-            &weights,
-            Midpoint::Integer,
-            None,
-        );
+        let enc = unit_weight_encode(&layout, &c, None);
         let mut previous = f64::INFINITY;
         for cut in (0..=enc.bytes.len()).step_by(7).chain([enc.bytes.len()]) {
             let complete = cut == enc.bytes.len();
@@ -1430,23 +1431,8 @@ mod tests {
         let (w, h) = (64, 64);
         let c = pseudo_random(w * h, 3, 20000);
         let layout = layout_for(w, h, 4, |_| 0);
-        let weights = vec![1.0; layout.bands.len()];
-        let full = encode(
-            &layout,
-            &c,
-            top_plane(&layout, &c),
-            &weights,
-            Midpoint::Integer,
-            None,
-        );
-        let cut = encode(
-            &layout,
-            &c,
-            top_plane(&layout, &c),
-            &weights,
-            Midpoint::Integer,
-            Some(500),
-        );
+        let full = unit_weight_encode(&layout, &c, None);
+        let cut = unit_weight_encode(&layout, &c, Some(500));
         assert!(!cut.complete);
         assert!(cut.bytes.len() >= 500 && cut.bytes.len() < full.bytes.len());
         assert_eq!(&cut.bytes[..500], &full.bytes[..500]);
@@ -1457,15 +1443,7 @@ mod tests {
         let (w, h) = (32, 32);
         let c = pseudo_random(w * h, 5, 4000);
         let layout = layout_for(w, h, 3, |_| 0);
-        let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(
-            &layout,
-            &c,
-            top_plane(&layout, &c),
-            &weights,
-            Midpoint::Integer,
-            None,
-        );
+        let enc = unit_weight_encode(&layout, &c, None);
         for (k, record) in enc.passes.iter().enumerate() {
             let dec = Decoder::run(
                 &layout,
@@ -1505,15 +1483,7 @@ mod tests {
         let (w, h) = (64, 64);
         let c = pseudo_random(w * h, 9, 30000);
         let layout = layout_for(w, h, 4, |_| 0);
-        let weights = vec![1.0; layout.bands.len()];
-        let enc = encode(
-            &layout,
-            &c,
-            top_plane(&layout, &c),
-            &weights,
-            Midpoint::Integer,
-            None,
-        );
+        let enc = unit_weight_encode(&layout, &c, None);
         assert!(
             enc.checkpoints.len() > 2 * enc.passes.len(),
             "{}",
