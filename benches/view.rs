@@ -7,12 +7,17 @@
 //!
 //! * **select from scratch**: [`ViewTerrain::select`] (the rebuild);
 //! * **incremental update**: [`Incremental::update`] on a smooth flight (the camera moves
-//!   1 m and turns 0.05° a frame, back and forth between two cameras);
+//!   1 m and turns 0.05° a frame, back and forth between two cameras) and on a straight
+//!   one (1 m a frame ahead, no turn);
 //! * **morph**: [`morph`] of the selection's mesh;
 //! * **triangulate**: the selection's triangles (hanging vertices included).
 //!
 //! Selection plus morphing a frame is incremental update + morph (+ triangulate to get
-//! the mesh the morph reads). Run:
+//! the mesh the morph reads). Before criterion runs, each terrain prints its frame, the
+//! leaves 20 updates revisited, fingerprints of the morph output and of the leaves after
+//! those updates (equal before and after a change that keeps the output), and the CPU
+//! time a call of each measurement (the machine is shared: wall-clock medians count the
+//! time others hold the core). Run:
 //!
 //! ```text
 //! CARGO_TARGET_DIR=/work/target-bench cargo bench --bench view -- --warm-up-time 1 --measurement-time 3
@@ -92,6 +97,48 @@ fn camera(k: f64) -> View {
         .view()
 }
 
+/// CPU seconds this thread has used (Linux `/proc`, 10 ms ticks); `None` elsewhere.
+fn thread_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
+    // Fields after the command name: utime and stime are the 12th and 13th, in ticks.
+    let fields: Vec<&str> = stat[stat.rfind(')')? + 2..].split_whitespace().collect();
+    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// Prints the CPU time a call of `f` takes over `calls` calls: on a loaded machine
+/// wall-clock medians count the time other processes hold the core, CPU time does not.
+fn print_cpu_time(label: &str, calls: usize, mut f: impl FnMut()) {
+    let Some(start) = thread_cpu_seconds() else {
+        return;
+    };
+    for _ in 0..calls {
+        f();
+    }
+    if let Some(end) = thread_cpu_seconds() {
+        eprintln!(
+            "{label}: CPU {:.1} ms a call ({calls} calls)",
+            (end - start) * 1e3 / calls as f64
+        );
+    }
+}
+
+/// FNV-1a over `words`: a fingerprint of a bench's output.
+fn fnv1a(words: impl Iterator<Item = u64>) -> u64 {
+    words.fold(0xcbf2_9ce4_8422_2325, |hash, word| {
+        (hash ^ word).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// A camera at step `k` of a straight flight: [`camera`]'s motion without the turn.
+fn straight(k: f64) -> View {
+    let eye = DVec3::new(600.0 + k, 1200.0 + 0.3 * k, 3400.0);
+    let look = eye + DVec3::new(0.5f64.cos() * 2000.0, 0.5f64.sin() * 2000.0, -1500.0);
+    Camera::new(eye, look, 60.0, (1600, 900))
+        .expect("valid camera")
+        .view()
+}
+
 fn bench_view(c: &mut Criterion) {
     bench_terrain(c, "ridges", synthetic_terrain(SIDE));
     bench_terrain(c, "fractal", fractal_terrain(SIDE));
@@ -127,23 +174,65 @@ fn bench_terrain(c: &mut Criterion, name: &str, raster: Raster) {
         mesh.triangles.len(),
         mesh.vertices.len()
     );
+    let mut incremental = Incremental::new(&terrain, &a, rule);
+    let mut flip = false;
+    let stats: Vec<_> = (0..20)
+        .map(|_| {
+            flip = !flip;
+            incremental.update(&terrain, if flip { &b } else { &a })
+        })
+        .collect();
+    eprintln!(
+        "{name} updates 1..20: revisited {:?} leaves",
+        stats.iter().map(|s| s.revisited).collect::<Vec<_>>()
+    );
+    let mut scratch = MorphScratch::default();
+    let morphed = morph(&terrain, &a, rule, &tree, &mesh, &mut scratch);
+    let leaves = incremental.tree().leaves();
+    eprintln!(
+        "{name} fingerprints (equal before and after a speed change): morph {:016x}, leaves after 20 updates {:016x}",
+        fnv1a(morphed.iter().map(|z| z.to_bits())),
+        fnv1a(leaves.iter().map(|c| u64::from(c.level) << 48 | u64::from(c.j) << 24 | u64::from(c.i)))
+    );
+    print_cpu_time(&format!("{name} select from scratch"), 8, || {
+        black_box(terrain.select(&a, rule));
+    });
+    print_cpu_time(&format!("{name} incremental update"), 24, || {
+        flip = !flip;
+        black_box(incremental.update(&terrain, if flip { &b } else { &a }));
+    });
+    let mut straight_flight = Incremental::new(&terrain, &straight(0.0), rule);
+    let mut step = 0.0;
+    print_cpu_time(&format!("{name} incremental update, straight"), 24, || {
+        step += 1.0;
+        black_box(straight_flight.update(&terrain, &straight(step)));
+    });
+    print_cpu_time(&format!("{name} morph"), 8, || {
+        black_box(morph(&terrain, &a, rule, &tree, &mesh, &mut scratch));
+    });
+    print_cpu_time(&format!("{name} triangulate"), 8, || {
+        black_box(terrain.triangulate(&tree));
+    });
     let mut group = c.benchmark_group(format!("view {name} 4097² 1600×900 τ=1"));
     group.sample_size(10);
     group.bench_function("select from scratch", |bench| {
         bench.iter(|| black_box(terrain.select(black_box(&a), rule)))
     });
-    let mut incremental = Incremental::new(&terrain, &a, rule);
-    let mut flip = false;
     group.bench_function("incremental update (smooth flight)", |bench| {
         bench.iter(|| {
             flip = !flip;
             black_box(incremental.update(&terrain, if flip { &b } else { &a }))
         })
     });
+    group.bench_function("incremental update (straight flight)", |bench| {
+        bench.iter(|| {
+            step += 1.0;
+            black_box(straight_flight.update(&terrain, &straight(step)))
+        })
+    });
     group.bench_function("triangulate", |bench| {
         bench.iter(|| black_box(terrain.triangulate(&tree)))
     });
-    let mut scratch = MorphScratch::default();
     group.bench_function("morph", |bench| {
         bench.iter(|| black_box(morph(&terrain, &a, rule, &tree, &mesh, &mut scratch)))
     });

@@ -135,6 +135,35 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(12))]
+
+    /// Slow flights over larger grids, where most leaves outlive a frame: the updates that
+    /// copy unexpired runs and blocks of leaves and re-evaluate only a leaf's expired
+    /// bound (its own or its parent's) still equal the rebuild every frame, and do skip
+    /// leaves.
+    #[test]
+    fn slow_flights_skip_leaves_and_equal_the_rebuild(
+        side in 120usize..220, seed in any::<u64>(), voids in any::<bool>(),
+        turn in -0.5f64..0.5, frames in 10usize..30, step in 0.0005f64..0.004,
+    ) {
+        let decoded = decode_with_map(&terrain(side, side, seed, voids));
+        let terrain = decoded.terrain();
+        let rule = Rule::ScreenSpace { tau: 0.5 };
+        let mut incremental = Incremental::new(&terrain, &flight(side, side, 0.3, 40.0, turn), rule);
+        let mut skipped = 0;
+        for f in 1..frames {
+            let view = flight(side, side, 0.3 + f as f64 * step, 40.0, turn);
+            let before = incremental.tree().leaves().len();
+            let stats = incremental.update(&terrain, &view);
+            skipped += before - stats.revisited;
+            let rebuilt = terrain.select(&view, rule);
+            prop_assert!(incremental.tree().leaves() == rebuilt.leaves(), "frame {}: incremental differs from the rebuild", f);
+        }
+        prop_assert!(skipped > 0, "no update skipped a leaf");
+    }
+}
+
 /// Morphed heights move little between close frames where the unmorphed ones pop.
 #[test]
 fn geomorphing_bounds_vertex_jumps() {

@@ -411,6 +411,22 @@ impl CellTree {
         self.split[level as usize - 1][k / 64] >> (k % 64) & 1 != 0
     }
 
+    /// The split nodes of `level` (≥ 1) as `(i, j)`, row by row.
+    pub fn split_nodes(&self, level: u32) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let nw = self.dims[level as usize].0;
+        self.split[level as usize - 1]
+            .iter()
+            .enumerate()
+            .flat_map(move |(w, &word)| {
+                std::iter::successors((word != 0).then_some(word), |&bits| {
+                    let rest = bits & (bits - 1);
+                    (rest != 0).then_some(rest)
+                })
+                .map(move |bits| w * 64 + bits.trailing_zeros() as usize)
+            })
+            .map(move |k| (k % nw, k / nw))
+    }
+
     /// The valid corners of grid cell `cell` (level 0), bits as
     /// [`SampleValidity::cell_corners`]: all four (`0b1111`) when every sample is valid.
     #[inline]

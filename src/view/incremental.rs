@@ -2,14 +2,17 @@
 //! leaves are read from one buffer and the next frame's written to the other, visiting
 //! only leaves whose decision may have changed instead of descending from the roots.
 //!
-//! Each leaf carries an *expiry*: how far the camera may travel before the leaf could
-//! need a split or its parent a merge, in one measure of motion accumulated frame after
+//! Each leaf carries two *expiries*: how far the camera may travel before the leaf could
+//! need a split, and before its parent could need a merge, in one measure of motion accumulated frame after
 //! frame (see [`camera_motion`]): the eye's displacement plus the rotation angle times the
 //! farthest terrain corner, which bounds how far any box distance, horizontal reach,
 //! depth or frustum-plane distance moves. Those bound how much any node's ratio can
-//! change; leaves whose expiry is still ahead are copied as they are. The others are
-//! evaluated again: a leaf whose parent no longer splits merges up to the highest such
-//! ancestor, a leaf that now splits is refined from there down. The result equals
+//! change; leaves whose expiries are still ahead are copied as they are. For the others,
+//! what expired is evaluated again (the parent, the leaf, or both): a leaf whose parent
+//! no longer splits merges up to the highest such ancestor, a leaf that now splits is
+//! refined from there down. The leaves are kept in
+//! blocks of [`BLOCK`] with a lower bound on their expiries, so a block none of whose
+//! leaves can have changed is copied whole without looking at them. The result equals
 //! [`ViewTerrain::select`] for the same camera (the property tests check it frame after
 //! frame). The area rule has no such bound: every leaf is evaluated again each frame.
 
@@ -17,16 +20,19 @@ use super::camera::View;
 use super::selection::{NodeView, Rule, ViewTerrain};
 use crate::mesh::cells::{Cell, CellTree};
 
+/// Leaves per block of the leaf list: an update copies a block whose earliest expiry is
+/// still ahead as it is, without looking at its leaves.
+const BLOCK: usize = 64;
+
 /// A selection kept from frame to frame.
 #[derive(Debug)]
 pub struct Incremental {
     rule: Rule,
     tree: CellTree,
-    /// Expiry of every leaf of `tree` (accumulated motion), in the same order.
-    expiry: Vec<f64>,
+    /// The expiries of `tree`'s leaves (its `cells` stay empty: the tree holds them).
+    current: Leaves,
     /// The ping-pong buffers the next frame is written to.
-    spare_cells: Vec<Cell>,
-    spare_expiry: Vec<f64>,
+    spare: Leaves,
     /// Camera motion accumulated since the first frame (see [`camera_motion`]).
     travelled: f64,
     last: View,
@@ -46,6 +52,95 @@ pub struct UpdateStats {
     pub merged: usize,
     /// Leaves evaluated again (their expiry had passed).
     pub revisited: usize,
+}
+
+/// When a leaf must next be looked at, in accumulated camera motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Expiry {
+    /// Until then the leaf does not split.
+    own: f64,
+    /// Until then its parent splits.
+    parent: f64,
+}
+
+impl Expiry {
+    fn earliest(self) -> f64 {
+        self.own.min(self.parent)
+    }
+}
+
+/// Leaves in depth-first order with their expiries, and per block of [`BLOCK`] leaves a
+/// lower bound on the block's expiries (conservative: a bound may be lower than the
+/// block's smallest expiry, which costs a look at its leaves, never a missed one).
+#[derive(Debug, Default)]
+struct Leaves {
+    cells: Vec<Cell>,
+    /// Expiries of every leaf, in the order of `cells`.
+    expiry: Vec<Expiry>,
+    /// Block `k` covers leaves `k·BLOCK .. (k + 1)·BLOCK`.
+    block_expiry: Vec<f64>,
+}
+
+impl Leaves {
+    fn clear(&mut self) {
+        self.cells.clear();
+        self.expiry.clear();
+        self.block_expiry.clear();
+    }
+
+    fn last(&self) -> Option<Cell> {
+        self.cells.last().copied()
+    }
+
+    fn push(&mut self, cell: Cell, expiry: Expiry) {
+        let until = expiry.earliest();
+        self.cells.push(cell);
+        self.expiry.push(expiry);
+        let block = (self.cells.len() - 1) / BLOCK;
+        if block == self.block_expiry.len() {
+            self.block_expiry.push(until);
+        } else {
+            let bound = &mut self.block_expiry[block];
+            *bound = bound.min(until);
+        }
+    }
+
+    /// Removes the last leaf (its block's bound stays, still a lower bound).
+    fn pop(&mut self) {
+        self.cells.pop();
+        self.expiry.pop();
+    }
+
+    /// The leaves from `start` on whose expiries are all after `travelled`, up to the end
+    /// of `start`'s block at most: the end of that run and a lower bound on its expiries.
+    fn unexpired_run(&self, start: usize, travelled: f64) -> (usize, f64) {
+        let block = start / BLOCK;
+        let block_end = ((block + 1) * BLOCK).min(self.cells.len());
+        if start.is_multiple_of(BLOCK) && self.block_expiry[block] > travelled {
+            return (block_end, self.block_expiry[block]);
+        }
+        let mut bound = f64::INFINITY;
+        for (k, expiry) in self.expiry[start..block_end].iter().enumerate() {
+            let until = expiry.earliest();
+            if until <= travelled {
+                return (start + k, bound);
+            }
+            bound = bound.min(until);
+        }
+        (block_end, bound)
+    }
+
+    /// Appends `cells` with expiries `expiry`, none earlier than `bound`.
+    fn extend(&mut self, cells: &[Cell], expiry: &[Expiry], bound: f64) {
+        let start = self.cells.len();
+        self.cells.extend_from_slice(cells);
+        self.expiry.extend_from_slice(expiry);
+        let last = (self.cells.len() - 1) / BLOCK;
+        self.block_expiry.resize(last + 1, f64::INFINITY);
+        for block in &mut self.block_expiry[start / BLOCK..=last] {
+            *block = block.min(bound);
+        }
+    }
 }
 
 /// Slack safety factor: decisions are re-evaluated slightly before the bound says.
@@ -71,9 +166,8 @@ impl Incremental {
         let mut state = Incremental {
             rule,
             tree: terrain.select(view, rule),
-            expiry: Vec::new(),
-            spare_cells: Vec::new(),
-            spare_expiry: Vec::new(),
+            current: Leaves::default(),
+            spare: Leaves::default(),
             travelled: 0.0,
             last: *view,
             extent,
@@ -90,12 +184,13 @@ impl Incremental {
 
     fn reset_expiry(&mut self, terrain: &ViewTerrain<'_>, view: &View) {
         self.last_parent.set(None);
-        let leaves = self.tree.leaves().to_vec();
-        let expiry = leaves
-            .iter()
-            .map(|&c| self.leaf_expiry(terrain, view, c, None))
-            .collect();
-        self.expiry = expiry;
+        let mut fresh = Leaves::default();
+        for &cell in self.tree.leaves() {
+            fresh.push(cell, self.leaf_expiry(terrain, view, cell, None));
+        }
+        self.tree.swap_leaves(&mut fresh.cells);
+        fresh.cells.clear();
+        self.current = fresh;
     }
 
     /// Moves the selection to `view`.
@@ -114,63 +209,83 @@ impl Incremental {
             };
         }
         self.travelled += motion;
-        let mut old = std::mem::take(&mut self.spare_cells);
-        self.tree.swap_leaves(&mut old);
-        let mut cells = Vec::new();
-        self.tree.swap_leaves(&mut cells);
-        cells.clear();
-        let old_expiry = std::mem::take(&mut self.expiry);
-        let mut expiry = std::mem::take(&mut self.spare_expiry);
-        expiry.clear();
+        let mut old = std::mem::take(&mut self.current);
+        self.tree.swap_leaves(&mut old.cells);
+        let mut new = std::mem::take(&mut self.spare);
+        new.clear();
         let mut stats = UpdateStats::default();
-        for (&cell, &until) in old.iter().zip(&old_expiry) {
-            if cells.last().is_some_and(|&last| contains(last, cell)) {
-                continue; // merged into the last cell written
-            }
-            if until > self.travelled {
-                cells.push(cell);
-                expiry.push(until);
+        let mut k = 0;
+        while k < old.cells.len() {
+            let (end, bound) = old.unexpired_run(k, self.travelled);
+            if end > k {
+                new.extend(&old.cells[k..end], &old.expiry[k..end], bound);
+                k = end;
                 continue;
             }
             stats.revisited += 1;
-            self.revisit(terrain, view, cell, &mut cells, &mut expiry, &mut stats);
+            self.revisit(
+                terrain,
+                view,
+                (old.cells[k], old.expiry[k]),
+                &mut new,
+                &mut stats,
+            );
+            k += 1;
+            // A merge writes a cell holding the next old leaves (a depth-first run).
+            while k < old.cells.len() && new.last().is_some_and(|l| contains(l, old.cells[k])) {
+                k += 1;
+            }
         }
-        self.tree.swap_leaves(&mut cells);
-        self.spare_cells = old;
-        self.expiry = expiry;
-        self.spare_expiry = old_expiry;
+        self.tree.swap_leaves(&mut new.cells);
+        new.cells.clear();
+        self.current = new;
+        self.spare = old;
         stats
     }
 
-    /// Re-decides leaf `cell`: merge up, split down, or keep with a new expiry.
+    /// Re-decides leaf `cell` (with expiries `expiry`, one of them passed): merge up,
+    /// split down, or keep with new expiries. Only what expired is evaluated again.
     fn revisit(
         &mut self,
         terrain: &ViewTerrain<'_>,
         view: &View,
-        cell: Cell,
-        cells: &mut Vec<Cell>,
-        expiry: &mut Vec<f64>,
+        (cell, expiry): (Cell, Expiry),
+        leaves: &mut Leaves,
         stats: &mut UpdateStats,
     ) {
-        let top = self.merge_target(terrain, view, cell);
+        let parent_holds = expiry.parent > self.travelled;
+        let top = if parent_holds {
+            cell
+        } else {
+            self.merge_target(terrain, view, cell)
+        };
         if top != cell {
-            while cells.last().is_some_and(|&c| contains(top, c)) {
-                cells.pop();
-                expiry.pop();
+            while leaves.last().is_some_and(|c| contains(top, c)) {
+                leaves.pop();
             }
             self.clear_subtree(top);
             stats.merged += 1;
-            cells.push(top);
-            expiry.push(self.leaf_expiry(terrain, view, top, None));
+            leaves.push(top, self.leaf_expiry(terrain, view, top, None));
+            return;
+        }
+        let parent = if parent_holds {
+            expiry.parent
+        } else {
+            self.parent_expiry(terrain, view, cell)
+        };
+        if expiry.own > self.travelled {
+            leaves.push(cell, Expiry { parent, ..expiry });
             return;
         }
         let own = (cell.level > 0).then(|| self.evaluate(terrain, view, cell));
         if let Some(own) = own.filter(|o| self.rule.splits(o.ratio)) {
             stats.split += 1;
-            self.refine(terrain, view, (cell, own), cells, expiry);
+            self.refine(terrain, view, (cell, own), leaves);
         } else {
-            cells.push(cell);
-            expiry.push(self.leaf_expiry(terrain, view, cell, own));
+            let own = own.map_or(f64::INFINITY, |o| {
+                after(self.travelled, self.stay_unsplit(o))
+            });
+            leaves.push(cell, Expiry { own, parent });
         }
     }
 
@@ -212,8 +327,7 @@ impl Incremental {
         terrain: &ViewTerrain<'_>,
         view: &View,
         (cell, parent_view): (Cell, NodeView),
-        cells: &mut Vec<Cell>,
-        expiry: &mut Vec<f64>,
+        leaves: &mut Leaves,
     ) {
         self.tree.set_split(cell, true);
         let parent_slack = self.stay_split(terrain, cell, parent_view);
@@ -222,18 +336,26 @@ impl Incremental {
             let void = terrain.is_void(child.level, i, j);
             if child.level == 0 {
                 if self.tree.is_meshed(child) {
-                    cells.push(child);
-                    expiry.push(after(self.travelled, parent_slack));
+                    let parent = after(self.travelled, parent_slack);
+                    leaves.push(
+                        child,
+                        Expiry {
+                            own: f64::INFINITY,
+                            parent,
+                        },
+                    );
                 }
                 continue;
             }
             let own = self.evaluate(terrain, view, child);
             if void || self.rule.splits(own.ratio) {
-                self.refine(terrain, view, (child, own), cells, expiry);
+                self.refine(terrain, view, (child, own), leaves);
             } else {
-                cells.push(child);
-                let slack = self.stay_unsplit(own).min(parent_slack);
-                expiry.push(after(self.travelled, slack));
+                let expiry = Expiry {
+                    own: after(self.travelled, self.stay_unsplit(own)),
+                    parent: after(self.travelled, parent_slack),
+                };
+                leaves.push(child, expiry);
             }
         }
     }
@@ -262,19 +384,26 @@ impl Incremental {
         view: &View,
         cell: Cell,
         own: Option<NodeView>,
-    ) -> f64 {
+    ) -> Expiry {
         let own_slack = if cell.level == 0 {
             f64::INFINITY
         } else {
             self.stay_unsplit(own.unwrap_or_else(|| self.evaluate(terrain, view, cell)))
         };
-        let parent_slack = if cell.level >= terrain.levels() {
-            f64::INFINITY
-        } else {
-            let parent = parent_of(cell);
-            self.stay_split(terrain, parent, self.evaluate_parent(terrain, view, parent))
-        };
-        after(self.travelled, own_slack.min(parent_slack))
+        Expiry {
+            own: after(self.travelled, own_slack),
+            parent: self.parent_expiry(terrain, view, cell),
+        }
+    }
+
+    /// Until when the parent of leaf `cell` keeps splitting (infinite for a root).
+    fn parent_expiry(&self, terrain: &ViewTerrain<'_>, view: &View, cell: Cell) -> f64 {
+        if cell.level >= terrain.levels() {
+            return f64::INFINITY;
+        }
+        let parent = parent_of(cell);
+        let node = self.evaluate_parent(terrain, view, parent);
+        after(self.travelled, self.stay_split(terrain, parent, node))
     }
 
     /// How far the camera may move (in [`camera_motion`]'s measure Δ) before a node that
@@ -388,4 +517,65 @@ fn children(tree: &CellTree, cell: Cell) -> impl Iterator<Item = Cell> {
         .map(move |(a, b)| (2 * i + a, 2 * j + b))
         .filter(move |&(ci, cj)| ci < cw && cj < ch)
         .map(move |(ci, cj)| Cell::new(cell.level - 1, ci, cj))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every block's bound is at most the earliest expiry of the leaves it holds, through
+    /// pushes, pops and whole-run copies.
+    #[test]
+    fn block_bounds_stay_lower_bounds() {
+        let mut leaves = Leaves::default();
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as f64
+        };
+        let source: Vec<(Cell, Expiry)> = (0..500)
+            .map(|k| {
+                let expiry = Expiry {
+                    own: next(),
+                    parent: next(),
+                };
+                (Cell::new(0, k, 0), expiry)
+            })
+            .collect();
+        for (round, chunk) in source.chunks(37).enumerate() {
+            if round % 2 == 0 {
+                let cells: Vec<Cell> = chunk.iter().map(|c| c.0).collect();
+                let expiry: Vec<Expiry> = chunk.iter().map(|c| c.1).collect();
+                let bound = expiry
+                    .iter()
+                    .map(|e| e.earliest())
+                    .fold(f64::INFINITY, f64::min);
+                leaves.extend(&cells, &expiry, bound);
+            } else {
+                for &(cell, expiry) in chunk {
+                    leaves.push(cell, expiry);
+                }
+                for _ in 0..round % 5 {
+                    leaves.pop();
+                }
+            }
+        }
+        assert!(leaves.cells.len() > 3 * BLOCK);
+        for (k, expiry) in leaves.expiry.iter().enumerate() {
+            assert!(
+                leaves.block_expiry[k / BLOCK] <= expiry.earliest(),
+                "leaf {k}"
+            );
+        }
+        // And a run read back stops at the first expired leaf.
+        let travelled = leaves.expiry[10].earliest();
+        let (end, bound) = leaves.unexpired_run(0, travelled);
+        assert!(leaves.expiry[..end]
+            .iter()
+            .all(|e| e.earliest() > travelled));
+        assert!(end == BLOCK || leaves.expiry[end].earliest() <= travelled);
+        assert!(leaves.expiry[..end].iter().all(|e| e.earliest() >= bound));
+    }
 }

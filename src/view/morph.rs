@@ -19,7 +19,7 @@
 
 use super::camera::View;
 use super::selection::{blend_of_ratio, Rule, ViewTerrain};
-use crate::mesh::cells::{Cell, CellTree};
+use crate::mesh::cells::CellTree;
 use crate::mesh::pyramid::{node_bounds, Diagonal};
 use crate::mesh::GridMesh;
 
@@ -171,7 +171,8 @@ fn order_by_birth(mesh: &GridMesh, levels: u32, scratch: &mut MorphScratch) {
 }
 
 /// The blend factor of every split node of `tree` (1 for void ones), one evaluation each,
-/// into `blends`.
+/// into `blends`, level by level in row order (every split node's parent split too, so
+/// these are the nodes a descent from the roots would reach).
 fn split_blends(
     terrain: &ViewTerrain<'_>,
     view: &View,
@@ -183,32 +184,15 @@ fn split_blends(
     blends.resize(levels as usize, Vec::new());
     for m in 1..=levels {
         let (nw, nh) = tree.nodes(m);
-        blends[m as usize - 1].resize(nw * nh, 0.0);
-    }
-    let mut stack: Vec<Cell> = Vec::new();
-    if levels > 0 {
-        let (rw, rh) = tree.nodes(levels);
-        stack.extend((0..rh).flat_map(|j| (0..rw).map(move |i| Cell::new(levels, i, j))));
-    }
-    while let Some(cell) = stack.pop() {
-        let (i, j) = cell.position();
-        if !tree.is_split(cell.level, i, j) {
-            continue;
-        }
-        let b = if terrain.is_void(cell.level, i, j) {
-            1.0
-        } else {
-            blend_of_ratio(terrain.evaluate(view, rule, cell.level, i, j).ratio)
-        };
-        let nw = tree.nodes(cell.level).0;
-        blends[cell.level as usize - 1][j * nw + i] = b as f32;
-        if cell.level > 1 {
-            let (cw, ch) = tree.nodes(cell.level - 1);
-            for (ci, cj) in [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(a, b)| (2 * i + a, 2 * j + b)) {
-                if ci < cw && cj < ch {
-                    stack.push(Cell::new(cell.level - 1, ci, cj));
-                }
-            }
+        let level = &mut blends[m as usize - 1];
+        level.resize(nw * nh, 0.0);
+        for (i, j) in tree.split_nodes(m) {
+            let b = if terrain.is_void(m, i, j) {
+                1.0
+            } else {
+                blend_of_ratio(terrain.evaluate(view, rule, m, i, j).ratio)
+            };
+            level[j * nw + i] = b as f32;
         }
     }
 }
