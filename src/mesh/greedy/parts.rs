@@ -21,7 +21,7 @@ use super::{GreedyMesher, GreedyTarget};
 use crate::mesh::GridMesh;
 
 /// Parts are about this many samples a side.
-const PART_SIDE: usize = 256;
+const PART_SIDE: usize = 128;
 
 /// The fewest fitted seam vertices a seam sample for a split (see [`dense_enough`]):
 /// one a part side on average.
@@ -306,12 +306,12 @@ mod tests {
     #[test]
     fn cuts_span_the_side_in_parts_of_about_the_part_side() {
         assert_eq!(cuts(2), [0, 1]);
-        assert_eq!(cuts(300), [0, 299]);
-        assert_eq!(cuts(513), [0, 256, 512]);
+        assert_eq!(cuts(150), [0, 149]);
+        assert_eq!(cuts(513), [0, 128, 256, 384, 512]);
         let cut = cuts(2000);
-        assert_eq!((cut.len(), cut[0], cut[cut.len() - 1]), (9, 0, 1999));
-        assert!(cut.windows(2).all(|c| (240..=260).contains(&(c[1] - c[0]))));
-        assert!(!splits(300, 300) && splits(513, 200) && splits(200, 513));
+        assert_eq!((cut.len(), cut[0], cut[cut.len() - 1]), (17, 0, 1999));
+        assert!(cut.windows(2).all(|c| (120..=136).contains(&(c[1] - c[0]))));
+        assert!(!splits(150, 150) && splits(300, 100) && splits(100, 300));
     }
 
     #[test]
