@@ -135,8 +135,8 @@ pub struct MeshRow {
     pub uncovered: u64,
     /// Seconds to build the mesh (for a budget search, the whole search).
     pub build_seconds: f64,
-    /// CPU seconds of the building thread (Linux; `None` elsewhere): unlike wall-clock
-    /// seconds, not inflated by other processes on a busy machine.
+    /// CPU seconds of the process's threads while building (Linux; `None` elsewhere):
+    /// unlike wall-clock seconds, not inflated by other processes on a busy machine.
     pub build_cpu_seconds: Option<f64>,
     /// Heap peak while building, bytes.
     pub peak_heap_bytes: usize,
@@ -304,10 +304,10 @@ pub fn measure(
     surface: &Surface,
     budget: Budget,
 ) -> Result<MeshRow, MeshersError> {
-    let (start, cpu_start) = (Instant::now(), thread_cpu_seconds());
+    let (start, cpu_start) = (Instant::now(), process_cpu_seconds());
     let (mesh, peak) = memory::measure(|| build(method, raster, surface, budget));
     let build_seconds = start.elapsed().as_secs_f64();
-    let build_cpu_seconds = cpu_start.and_then(|s| Some(thread_cpu_seconds()? - s));
+    let build_cpu_seconds = cpu_start.and_then(|s| Some(process_cpu_seconds()? - s));
     let mesh = mesh?;
     let error = mesh_error(&mesh, &surface.heights, &surface.heights, &surface.valid);
     Ok(MeshRow {
@@ -324,10 +324,14 @@ pub fn measure(
     })
 }
 
-/// CPU seconds the calling thread has run (Linux `/proc/thread-self/schedstat`).
-fn thread_cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    let nanoseconds: f64 = stat.split_whitespace().next()?.parse().ok()?;
+/// CPU seconds every thread of this process has run (Linux `/proc/self/task/*/schedstat`):
+/// the building thread's and, for a mesher that splits its work, its helpers'.
+fn process_cpu_seconds() -> Option<f64> {
+    let mut nanoseconds = 0.0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        nanoseconds += stat.split_whitespace().next()?.parse::<f64>().ok()?;
+    }
     Some(nanoseconds * 1e-9)
 }
 

@@ -4,8 +4,9 @@
 //!
 //! Stages, one module each: [`triangulation`] (half-edges: split a triangle or an edge,
 //! flip an edge), [`scan`] (a triangle's samples: its worst one, its squared error),
-//! [`queue`] (triangles worst first) and [`flips`] (the data-dependent flips). This
-//! module drives them. After each insertion the edges around the new vertex are
+//! [`queue`] (triangles worst first), [`flips`] (the data-dependent flips) and
+//! [`parts`] (a large grid without nodata meshed towards a tolerance as parts, in
+//! parallel, their shared lines fitted first). This module drives them. After each insertion the edges around the new vertex are
 //! legalised by the Delaunay empty-circle test (what Delatin does); after the last one,
 //! [`GreedyMesher::optimise_flips`] may flip edges that lower the squared error (a
 //! data-dependent triangulation of the same vertices). Data-dependent flips during
@@ -15,6 +16,7 @@
 //! first (infinite error); triangles still covering nodata at the end are left out.
 
 pub mod flips;
+pub mod parts;
 pub mod queue;
 pub mod scan;
 pub mod triangulation;
@@ -74,20 +76,16 @@ pub struct GreedyMesher<'a, H: Height = f64> {
 impl<'a, H: Height> GreedyMesher<'a, H> {
     /// A mesher of `grid` (the rectangle as two triangles).
     pub fn new(grid: Grid<'a, H>) -> Result<GreedyMesher<'a, H>, GreedyError> {
-        let n = grid.width * grid.height;
-        if grid.width < 2 || grid.height < 2 {
-            return Err(GreedyError::TooSmall {
-                width: grid.width,
-                height: grid.height,
-            });
-        }
-        if grid.heights.len() != n || grid.valid.len() * 64 < n {
-            return Err(GreedyError::SizeMismatch(grid.heights.len(), n));
-        }
-        if let Some(s) = (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].into().is_finite()) {
-            return Err(GreedyError::NotFinite(s));
-        }
-        let mut mesher = GreedyMesher {
+        check(&grid)?;
+        let mut mesher = GreedyMesher::unassessed(grid);
+        mesher.assess_touched();
+        Ok(mesher)
+    }
+
+    /// A mesher of a checked `grid` whose touched triangles (the rectangle's two) are
+    /// not assessed yet.
+    fn unassessed(grid: Grid<'a, H>) -> GreedyMesher<'a, H> {
+        GreedyMesher {
             grid,
             tin: Triangulation::rectangle(grid.width, grid.height, |p| grid.vertex_height(p)),
             assessments: Vec::new(),
@@ -96,9 +94,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             to_legalise: Vec::new(),
             settled: 0.0,
             resolving_flips: false,
-        };
-        mesher.assess_touched();
-        Ok(mesher)
+        }
     }
 
     /// Before inserting into a triangle over a tolerance, try flipping one of its sides
@@ -196,13 +192,21 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
     fn insert(&mut self, t: u32) {
         let (x, y) = self.candidate_point(t);
         let side = self.side_holding(t);
+        self.insert_point((x, y), side.ok_or(t));
+        self.assess_touched();
+    }
+
+    /// Inserts a vertex at grid point `(x, y)` on the side `Ok(half-edge)` or inside the
+    /// triangle `Err(t)`, legalises around it and records the triangles it touched
+    /// (not assessed yet); returns the vertex.
+    fn insert_point(&mut self, (x, y): (i64, i64), place: Result<u32, u32>) -> u32 {
         let p = self.tin.add_point(x, y, self.grid.vertex_height((x, y)));
         let mut to_legalise = std::mem::take(&mut self.to_legalise);
-        match side {
-            Some(e) => self
+        match place {
+            Ok(e) => self
                 .tin
                 .split_edge(e, p, &mut self.touched, &mut to_legalise),
-            None => {
+            Err(t) => {
                 let (made, opposite) = self.tin.split_triangle(t, p);
                 self.touched.extend_from_slice(&made);
                 to_legalise.extend_from_slice(&opposite);
@@ -210,7 +214,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         }
         self.legalise(&mut to_legalise);
         self.to_legalise = to_legalise;
-        self.assess_touched();
+        p
     }
 
     /// Flips each edge of `stack` (opposite the new vertex) while the new vertex lies
@@ -270,6 +274,25 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
     }
 }
 
+/// Checks that `grid` can be meshed: two samples a side at least, as many heights and
+/// validity flags as samples, every valid height finite.
+fn check<H: Height>(grid: &Grid<H>) -> Result<(), GreedyError> {
+    let n = grid.width * grid.height;
+    if grid.width < 2 || grid.height < 2 {
+        return Err(GreedyError::TooSmall {
+            width: grid.width,
+            height: grid.height,
+        });
+    }
+    if grid.heights.len() != n || grid.valid.len() * 64 < n {
+        return Err(GreedyError::SizeMismatch(grid.heights.len(), n));
+    }
+    match (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].into().is_finite()) {
+        Some(s) => Err(GreedyError::NotFinite(s)),
+        None => Ok(()),
+    }
+}
+
 /// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`. With
 /// `optimise` (passes), the data-dependent refinements: resolving flips during
 /// insertion towards a tolerance, error-lowering flips after it. Heights are read as
@@ -311,6 +334,14 @@ fn mesh_grid<H: Height>(
     target: GreedyTarget,
     optimise: Option<usize>,
 ) -> Result<GridMesh, GreedyError> {
+    if let (GreedyTarget::MaxError(e), Some(passes)) = (target, optimise) {
+        if grid.has_no_nodata() && parts::splits(grid.width, grid.height) {
+            check(&grid)?;
+            if let Some(mesh) = parts::mesh_in_parts(&grid, e, passes) {
+                return Ok(mesh);
+            }
+        }
+    }
     let mut mesher = GreedyMesher::new(grid)?;
     if optimise.is_some() {
         mesher = mesher.with_resolving_flips();

@@ -11,9 +11,23 @@ use super::triangulation::{orient, Vertex};
 
 /// A stored height: `f64`, or `f32` when every valid height is exactly an `f32` (the
 /// same values in half the memory; every error is still computed in `f64`).
-pub trait Height: Copy + Into<f64> {}
+pub trait Height: Copy + Into<f64> + Send + Sync {}
 
-impl<T: Copy + Into<f64>> Height for T {}
+impl<T: Copy + Into<f64> + Send + Sync> Height for T {}
+
+/// Sides of a grid shared with a neighbouring grid (a part of a larger one): their
+/// samples are fitted beforehand, the same on both sides, so they are never candidates.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SharedSides {
+    /// Column 0.
+    pub first_column: bool,
+    /// The last column.
+    pub last_column: bool,
+    /// Row 0.
+    pub first_row: bool,
+    /// The last row.
+    pub last_row: bool,
+}
 
 /// The heights a greedy mesh approximates.
 #[derive(Debug, Clone, Copy)]
@@ -28,6 +42,10 @@ pub struct Grid<'a, H: Height = f64> {
     pub valid: &'a [u64],
     /// Whether every sample is valid (rows then need no check).
     no_nodata: bool,
+    /// Columns whose samples may be candidates (all but shared sides), first and last.
+    candidate_columns: (i64, i64),
+    /// Rows whose samples may be candidates, first and last.
+    candidate_rows: (i64, i64),
 }
 
 impl<'a, H: Height> Grid<'a, H> {
@@ -45,7 +63,28 @@ impl<'a, H: Height> Grid<'a, H> {
             heights,
             valid,
             no_nodata,
+            candidate_columns: (0, width as i64 - 1),
+            candidate_rows: (0, height as i64 - 1),
         }
+    }
+
+    /// The grid whose `shared` sides hold no candidates.
+    pub fn with_shared_sides(mut self, shared: SharedSides) -> Grid<'a, H> {
+        let (w, h) = (self.width as i64, self.height as i64);
+        self.candidate_columns = (
+            i64::from(shared.first_column),
+            w - 1 - i64::from(shared.last_column),
+        );
+        self.candidate_rows = (
+            i64::from(shared.first_row),
+            h - 1 - i64::from(shared.last_row),
+        );
+        self
+    }
+
+    /// Whether every sample is valid.
+    pub fn has_no_nodata(&self) -> bool {
+        self.no_nodata
     }
 
     /// Whether sample `s` is valid.
@@ -388,18 +427,25 @@ fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
 }
 
 /// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
-/// up to the first row that is not); `None` when it meets nodata or goes over.
+/// up to the first row that is not); `None` when it meets nodata or goes over. Samples
+/// on the grid's shared sides are not read (fitted beforehand, never candidates).
 #[inline]
 pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
     let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
+    let (columns, rows) = (grid.candidate_columns, grid.candidate_rows);
     for_each_span(p, |y, lo, hi| {
         let row = y as usize * grid.width;
         if !grid.all_valid(row + lo as usize, row + hi as usize) {
             within = false;
             return false;
         }
+        if y < rows.0 || y > rows.1 {
+            // A shared row: fitted beforehand, within any tolerance asked for.
+            return true;
+        }
+        let (lo, hi) = (lo.max(columns.0), hi.min(columns.1));
         // Corners, exact up to rounding, lie at the ends of their rows' spans and are
         // never candidates.
         let (lo, hi) = if p.iter().any(|q| q.1 == y) {
