@@ -39,7 +39,10 @@ pub fn bpp_budget(bpp: f64, samples: u64) -> PyResult<u64> {
 /// The decoder's limits: the command line's defaults unless given.
 pub fn limits(max_samples: Option<u64>, max_memory: Option<u64>) -> Limits {
     let default = Limits::default();
-    Limits::new(max_samples.unwrap_or(default.max_samples), max_memory.unwrap_or(default.max_memory))
+    Limits::new(
+        max_samples.unwrap_or(default.max_samples),
+        max_memory.unwrap_or(default.max_memory),
+    )
 }
 
 /// The encoder's options from the keyword arguments, as the command line's `encode`
@@ -126,7 +129,9 @@ pub fn encode<'py>(
 /// `options` with the largest tile side `tile` (0: one stream whatever the size) and
 /// `threads` threads coding tiles (0: one per core), as `--tile` and `--threads` say.
 fn tiled(options: EncodeOptions, tile: u32, threads: usize) -> EncodeOptions {
-    options.with_tile_size((tile > 0).then_some(tile)).with_threads(threads)
+    options
+        .with_tile_size((tile > 0).then_some(tile))
+        .with_threads(threads)
 }
 
 /// How the command line reads a DEM file to encode it.
@@ -230,7 +235,12 @@ pub fn decode_prefix(py: Python<'_>, data: &[u8], request: &DecodeRequest) -> Py
         (Some(bpp), None) => Some(bpp_budget(bpp, header.sample_count())?),
         (None, nbytes) => nbytes,
     };
-    let options = DecodeOptions::default().with_max_bytes(max_bytes).with_limits(request.limits).with_strict(request.strict).with_significance_map(request.significance_map).with_threads(request.threads);
+    let options = DecodeOptions::default()
+        .with_max_bytes(max_bytes)
+        .with_limits(request.limits)
+        .with_strict(request.strict)
+        .with_significance_map(request.significance_map)
+        .with_threads(request.threads);
     py.detach(|| decode_window(&mut &data[..], request.window, &options))
         .map_err(codec_error)
 }

@@ -21,7 +21,7 @@ use crate::georef::georef_of;
 
 /// A tile's summary as plain Python values (picklable, so it travels from a worker to
 /// the driver): `len`, `head_len`, initial error, passes `(end, error)`, mode name, error
-/// bound, valid range, wavelet code, levels.
+/// bound, valid range, wavelet code, levels, checkpoints `(end, error)`.
 type SummaryValues = (
     u64,
     u64,
@@ -32,11 +32,13 @@ type SummaryValues = (
     Option<(f64, f64)>,
     u8,
     u8,
+    Vec<(u64, f64)>,
 );
 
-/// The values of `summary`, exactly (errors are Python floats: f64 both sides).
-fn summary_values(summary: TileSummary) -> SummaryValues {
-    let entry = summary.entry;
+/// The values of `tile`'s summary and checkpoints, exactly (errors are Python floats:
+/// f64 both sides).
+fn summary_values(tile: EncodedTile) -> SummaryValues {
+    let (summary, entry) = (tile.summary.clone(), tile.summary.entry);
     (
         entry.len,
         entry.head_len,
@@ -47,12 +49,33 @@ fn summary_values(summary: TileSummary) -> SummaryValues {
         summary.valid_range,
         summary.wavelet.code(),
         summary.levels,
+        tile.checkpoints,
     )
+}
+
+/// The tile `values` describe (see [`summary_values`]) with its stream `bytes`.
+fn tile_of(values: SummaryValues, bytes: Vec<u8>) -> PyResult<EncodedTile> {
+    let checkpoints = values.9.clone();
+    let summary = summary_of(values, bytes.len())?;
+    let head_len = summary.entry.head_len;
+    let in_tile = checkpoints
+        .iter()
+        .all(|p| p.0 >= head_len && p.0 <= bytes.len() as u64);
+    if !in_tile || !checkpoints.windows(2).all(|pair| pair[0].0 <= pair[1].0) {
+        return Err(PyValueError::new_err(
+            "not a tile summary: checkpoints out of place",
+        ));
+    }
+    Ok(EncodedTile {
+        bytes,
+        summary,
+        checkpoints,
+    })
 }
 
 /// The summary `values` hold (see [`summary_values`]) of a tile of `len` bytes.
 fn summary_of(values: SummaryValues, tile_len: usize) -> PyResult<TileSummary> {
-    let (len, head_len, initial_error, passes, mode, max_error, valid_range, wavelet, levels) =
+    let (len, head_len, initial_error, passes, mode, max_error, valid_range, wavelet, levels, _) =
         values;
     let bad = |what: &str| PyValueError::new_err(format!("not a tile summary: {what}"));
     let mut ends = std::iter::once(head_len).chain(passes.iter().map(|p| p.0));
@@ -149,7 +172,8 @@ pub fn encode_tile<'py>(
     let tile = py
         .detach(|| encode_one_tile(&part, &options, cap))
         .map_err(codec_error)?;
-    Ok((PyBytes::new(py, &tile.bytes), summary_values(tile.summary)))
+    let bytes = PyBytes::new(py, &tile.bytes);
+    Ok((bytes, summary_values(tile)))
 }
 
 /// The tiles `write_tiled` receives: `(stream, summary)` per tile, in grid order.
@@ -201,12 +225,7 @@ pub fn write_tiled(
     }
     let tiles = tiles
         .into_iter()
-        .map(|(bytes, values)| {
-            Ok(EncodedTile {
-                summary: summary_of(values, bytes.as_bytes().len())?,
-                bytes: bytes.as_bytes().to_vec(),
-            })
-        })
+        .map(|(bytes, values)| tile_of(values, bytes.as_bytes().to_vec()))
         .collect::<PyResult<Vec<EncodedTile>>>()?;
     let (georef, crs_wkt) = georef_of(geotransform, epsg, crs_wkt)?;
     let (first, _) = Header::parse(&tiles[0].bytes).map_err(codec_error)?;
@@ -249,10 +268,7 @@ fn recoded(recode: Option<&Py<PyAny>>, k: usize, cap: u64) -> Result<EncodedTile
     })?;
     Python::attach(|py| {
         let (bytes, values): (Vec<u8>, SummaryValues) = recode.call1(py, (k, cap))?.extract(py)?;
-        Ok(EncodedTile {
-            summary: summary_of(values, bytes.len())?,
-            bytes,
-        })
+        tile_of(values, bytes)
     })
     .map_err(CutError::Python)
 }

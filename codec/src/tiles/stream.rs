@@ -33,8 +33,9 @@ pub struct EncodedTile {
     /// What the index and header need.
     pub summary: TileSummary,
     /// Truncation points inside its passes (prefix length, estimated squared error),
-    /// for the allocation of a budget; not stored in the file.
-    pub(crate) checkpoints: Vec<(u64, f64)>,
+    /// for the allocation of a budget: not stored in the file, so carried with the tile
+    /// when tiles are coded elsewhere (an empty list allocates the tile at pass ends).
+    pub checkpoints: Vec<(u64, f64)>,
 }
 
 impl EncodedTile {
