@@ -13,6 +13,8 @@
 //!     --warm-up-time 1 --measurement-time 3
 //! ```
 
+mod support;
+
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
 use std::hint::black_box;
 use std::path::Path;
@@ -24,23 +26,11 @@ use wavemesh_codec::{
 /// Side of the synthetic terrain.
 const SIDE: usize = 1024;
 
-/// Smooth synthetic terrain in decimetres (sum of sines plus a little xorshift noise).
+/// The benches' synthetic terrain in whole decimetres.
 fn synthetic() -> Raster {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let heights = (0..SIDE * SIDE)
-        .map(|i| {
-            let (x, y) = ((i % SIDE) as f64, (i / SIDE) as f64);
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let noise = (state >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
-            let h = 12000.0
-                + 6000.0 * (x / 310.0).sin() * (y / 270.0).cos()
-                + 1500.0 * (x / 47.0 + y / 83.0).sin()
-                + 400.0 * (x / 11.0).cos() * (y / 13.0).sin()
-                + 20.0 * noise;
-            h.round() as u16
-        })
+    let heights = support::terrain_metres(SIDE, SIDE)
+        .into_iter()
+        .map(|m| (m * 10.0).round() as u16)
         .collect();
     Raster::new(SIDE, SIDE, Samples::U16(heights)).expect("a synthetic raster")
 }

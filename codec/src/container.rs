@@ -431,10 +431,9 @@ fn derivation_key(header: &Header) -> (Wavelet, u32, u32, u8) {
 /// Whether `header`'s bands are the ones a decoder derives from its size (computed only
 /// when the header does not carry them for its current size).
 fn bands_derivable(header: &Header) -> bool {
-    let matches = |d: &DerivedBands| d.key == derivation_key(header) && d.bands == header.bands;
     match &header.derived {
-        Some(d) if d.key == derivation_key(header) => matches(d),
-        _ => DerivedBands::of(header).is_some_and(|d| matches(&d)),
+        Some(d) if d.key == derivation_key(header) => d.bands == header.bands,
+        _ => DerivedBands::of(header).is_some_and(|d| d.bands == header.bands),
     }
 }
 
