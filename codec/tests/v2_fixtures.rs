@@ -126,7 +126,9 @@ fn new_files_say_coder_4_and_decode_exactly() {
 /// Tiled files written before tiles overlapped (commit 0603092: no overlap field, flag 9
 /// clear), 120 × 90 synthetic terrain in 6 tiles of 40 × 45, decode to what that
 /// decoder made of them: lossless whole and at a 1500-byte budget, and a 9/7 file cut
-/// at 2 bpp.
+/// at 2 bpp. (The budget's decode is re-recorded since budgets are allocated over
+/// modelled passes, `TileEntry::modelled_points`: RMSE against the lossless decode 1.660
+/// before, 1.633 after.)
 #[test]
 fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
     for (name, budget, decoded) in [

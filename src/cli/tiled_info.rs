@@ -97,7 +97,7 @@ fn rates(layout: &TiledLayout) -> Vec<RateReport> {
                 .entries
                 .iter()
                 .zip(&shares)
-                .map(|(entry, &share)| error_at(&entry.points(lossless), share))
+                .map(|(entry, &share)| error_at(&entry.modelled_points(lossless), share))
                 .sum();
             let rmse = (error / samples).sqrt();
             (bytes < layout.file_len()).then_some(RateReport {
@@ -110,7 +110,8 @@ fn rates(layout: &TiledLayout) -> Vec<RateReport> {
         .collect()
 }
 
-/// The estimated error of a tile's decode of `bytes`: that of the last point reached.
+/// The estimated error of a tile's decode of `bytes`: that of the last (modelled) point
+/// reached.
 fn error_at(points: &[(u64, f64)], bytes: u64) -> f64 {
     points
         .iter()

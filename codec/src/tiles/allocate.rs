@@ -11,7 +11,10 @@ use super::index::TileEntry;
 /// until the budget runs out (the last one in part: streams are embedded). `None` when
 /// the budget does not cover the tiles' headers and masks.
 pub fn allocate(entries: &[TileEntry], lossless: bool, budget: u64) -> Option<Vec<u64>> {
-    let points: Vec<Vec<(u64, f64)>> = entries.iter().map(|e| e.points(lossless)).collect();
+    let points: Vec<Vec<(u64, f64)>> = entries
+        .iter()
+        .map(|e| e.modelled_points(lossless))
+        .collect();
     allocate_points(&points, budget)
 }
 
@@ -139,6 +142,23 @@ mod tests {
             with[1].clone(),
         ];
         assert_eq!(allocate_points(&without, 40), Some(vec![30, 10]));
+    }
+
+    #[test]
+    fn a_pass_modelled_to_fall_fastest_first_shares_the_budget() {
+        // Tile 0's pass lowers its error 100-fold, tile 1's only 2-fold, over the same
+        // 1000 bytes. Along straight lines tile 0 is steeper all the way and takes the
+        // whole budget; modelled, its pass flattens towards its end, below the start of
+        // tile 1's, which then gets the rest.
+        let tiles = [
+            entry(10, 1000.0, &[(1010, 10.0)]),
+            entry(10, 1000.0, &[(1010, 500.0)]),
+        ];
+        let bytes = allocate(&tiles, false, 20 + 500).unwrap();
+        assert_eq!(bytes.iter().sum::<u64>(), 520);
+        assert!(bytes[1] > 10 && bytes[0] > bytes[1], "{bytes:?}");
+        let straight: Vec<Vec<(u64, f64)>> = tiles.iter().map(|e| e.points(false)).collect();
+        assert_eq!(allocate_points(&straight, 20 + 500), Some(vec![510, 10]));
     }
 
     #[test]
