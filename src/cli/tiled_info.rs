@@ -97,7 +97,7 @@ fn rates(layout: &TiledLayout) -> Vec<RateReport> {
                 .entries
                 .iter()
                 .zip(&shares)
-                .map(|(entry, &share)| error_at(&entry.modelled_points(lossless), share))
+                .map(|(entry, &share)| error_at(&entry.points(lossless), share))
                 .sum();
             let rmse = (error / samples).sqrt();
             (bytes < layout.file_len()).then_some(RateReport {
@@ -110,14 +110,17 @@ fn rates(layout: &TiledLayout) -> Vec<RateReport> {
         .collect()
 }
 
-/// The estimated error of a tile's decode of `bytes`: that of the last (modelled) point
-/// reached.
+/// The estimated error of a tile's decode of `bytes`: interpolated along a straight line
+/// between the points around it.
 fn error_at(points: &[(u64, f64)], bytes: u64) -> f64 {
-    points
-        .iter()
-        .take_while(|p| p.0 <= bytes)
-        .last()
-        .map_or(points[0].1, |p| p.1)
+    let k = points.partition_point(|p| p.0 <= bytes);
+    match (k.checked_sub(1).map(|j| points[j]), points.get(k)) {
+        (Some((from, e0)), Some(&(to, e1))) => {
+            e0 + (e1 - e0) * (bytes - from) as f64 / (to - from) as f64
+        }
+        (Some((_, e)), None) => e,
+        (None, _) => points[0].1,
+    }
 }
 
 fn print_text(r: &TiledInfoReport) {
