@@ -482,22 +482,36 @@ fn ones(len: usize) -> u64 {
     }
 }
 
-/// Codes the significance decision (and the sign, when significant) of insignificant
-/// coefficient `at` at own plane `p`, committing it when significant. `None` when the
-/// side stopped; else whether it became significant and the zerotree model index.
-#[allow(clippy::too_many_arguments)]
+/// Where a significance decision is coded: the coefficient, its band (and the band's
+/// number), its own plane in the pass, its parent's row and its bit in the bitmaps.
+#[derive(Clone, Copy)]
+struct Site<'a> {
+    at: At,
+    band: &'a Band,
+    b: usize,
+    p: u32,
+    parent_row: Option<ParentRow>,
+    bit: usize,
+}
+
+/// Codes the significance decision (and the sign, when significant) of the insignificant
+/// coefficient at `site`, committing it when significant. `None` when the side stopped;
+/// else whether it became significant and the zerotree model index.
 #[inline]
 fn code_significance<S: Side>(
     grid: &mut FlagGrid,
     contexts: &mut Contexts,
     side: &mut S,
-    at: At,
-    band: &Band,
-    b: usize,
-    p: u32,
-    parent_row: Option<ParentRow>,
-    bit: usize,
+    site: Site,
 ) -> Option<(bool, usize)> {
+    let Site {
+        at,
+        band,
+        b,
+        p,
+        parent_row,
+        bit,
+    } = site;
     let class = band.class * contexts.choice.subband_class as usize;
     let (ctx, zctx) = dominant_contexts(contexts, grid, side, at, class, p, parent_row);
     let i = at.index;
@@ -580,17 +594,15 @@ fn dominant_scan<S: Side>(
                         let class = band.class * contexts.choice.subband_class as usize;
                         dominant_contexts(contexts, grid, side, at, class, p, parent_row).1
                     } else {
-                        let coded = code_significance(
-                            grid,
-                            contexts,
-                            side,
+                        let site = Site {
                             at,
                             band,
                             b,
                             p,
                             parent_row,
-                            row.bit + x,
-                        );
+                            bit: row.bit + x,
+                        };
+                        let coded = code_significance(grid, contexts, side, site);
                         match coded {
                             None => {
                                 deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);

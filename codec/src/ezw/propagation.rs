@@ -13,7 +13,7 @@
 
 use super::{
     code_significance, deposit_bits, extract_bits, ones, parent_band, parent_row, BandRow,
-    CoefficientLayout, Contexts, FlagGrid, ScanEnd, Side,
+    CoefficientLayout, Contexts, FlagGrid, ScanEnd, Side, Site,
 };
 
 /// Runs the propagation scan of pass `n`: bands coarse to fine, each in raster order,
@@ -58,17 +58,15 @@ pub(super) fn scan<S: Side>(
                     visited |= 1 << k;
                     let x = chunk + k;
                     let at = row.at(x);
-                    let coded = code_significance(
-                        grid,
-                        contexts,
-                        side,
+                    let site = Site {
                         at,
                         band,
                         b,
                         p,
                         parent_row,
-                        row.bit + x,
-                    );
+                        bit: row.bit + x,
+                    };
+                    let coded = code_significance(grid, contexts, side, site);
                     match coded {
                         None => return ScanEnd::Stopped,
                         Some((true, _)) => {
