@@ -103,7 +103,7 @@ pub struct Header {
     /// The bands a decoder derives for this header's size, levels and wavelet (see
     /// [`derived_bands`]), when the encoder or the parser already computed them: a
     /// written header leaves `bands` out when they equal these.
-    pub(crate) derived: Option<DerivedBands>,
+    pub(crate) derived: DerivedMemo,
     /// Bytes of the payload in the file (framed: with its chunk checksums).
     pub payload_len: u64,
     /// The payload is a prefix of a longer embedded stream (the encoder stopped at a byte
@@ -179,7 +179,7 @@ impl Header {
             top_plane: None,
             coder: crate::ezw::Coder::default(),
             bands: Vec::new(),
-            derived: None,
+            derived: DerivedMemo(None),
             payload_len: 0,
             payload_truncated: false,
             mask_len: 0,
@@ -388,6 +388,18 @@ fn derived_bands(wavelet: Wavelet, width: u32, height: u32, levels: u8) -> Optio
     Some(bands_from_norms(wavelet, norms))
 }
 
+/// A header's [`DerivedBands`] when already computed: a memo, so it takes no part in
+/// comparing headers (two headers with the same fields are equal whether or not either
+/// has computed them).
+#[derive(Debug, Clone)]
+pub(crate) struct DerivedMemo(pub(crate) Option<DerivedBands>);
+
+impl PartialEq for DerivedMemo {
+    fn eq(&self, _: &DerivedMemo) -> bool {
+        true
+    }
+}
+
 /// The bands a decoder derives for a header, kept with what they were derived for.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct DerivedBands {
@@ -431,7 +443,7 @@ fn derivation_key(header: &Header) -> (Wavelet, u32, u32, u8) {
 /// Whether `header`'s bands are the ones a decoder derives from its size (computed only
 /// when the header does not carry them for its current size).
 fn bands_derivable(header: &Header) -> bool {
-    match &header.derived {
+    match &header.derived.0 {
         Some(d) if d.key == derivation_key(header) => d.bands == header.bands,
         _ => DerivedBands::of(header).is_some_and(|d| d.bands == header.bands),
     }
@@ -921,7 +933,7 @@ mod tests {
             top_plane: Some(17),
             coder: Coder::V2,
             bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
-            derived: None,
+            derived: DerivedMemo(None),
             payload_len: 12345,
             payload_truncated: false,
             mask_len: 17,
@@ -1130,10 +1142,10 @@ mod tests {
         h.wavelet = Wavelet::Cdf97;
         h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
         let computed = h.to_bytes();
-        h.derived = Some(DerivedBands::as_read(&h));
+        h.derived = DerivedMemo(Some(DerivedBands::as_read(&h)));
         assert_eq!(h.to_bytes(), computed);
         let (parsed, _) = Header::parse(&computed).unwrap();
-        assert_eq!((&parsed.bands, &parsed.derived), (&h.bands, &h.derived));
+        assert_eq!((&parsed.bands, &parsed.derived.0), (&h.bands, &h.derived.0));
         // Bands changed after the derivation: listed.
         let mut other = h.clone();
         other.bands[0].1 *= 2.0;

@@ -61,7 +61,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         coder: crate::ezw::Coder::V1,
         top_plane,
         bands,
-        derived: None,
+        derived: super::DerivedMemo(None),
         payload_len,
         payload_truncated,
         mask_len,

@@ -367,7 +367,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         top_plane,
         coder,
         bands,
-        derived: None,
+        derived: super::DerivedMemo(None),
         payload_len,
         payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
         mask_len,
@@ -380,7 +380,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         tiling: None,
     };
     if flags & flag::BANDS_LISTED == 0 {
-        header.derived = Some(super::DerivedBands::as_read(&header));
+        header.derived = super::DerivedMemo(Some(super::DerivedBands::as_read(&header)));
     }
     Ok((header, flags & flag::RANGE_IN_LADDER != 0))
 }

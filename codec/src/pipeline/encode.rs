@@ -183,7 +183,7 @@ pub(crate) fn encode_stream(
         has_voids,
         top,
     );
-    header.derived = container::DerivedBands::from_norms(&header, norms);
+    header.derived = container::DerivedMemo(container::DerivedBands::from_norms(&header, norms));
     header.mask_len = sections.mask.len() as u32;
     header.residual_len = sections.residual.len() as u32;
     let budget = options.budget_bytes.map(|b| b as usize);

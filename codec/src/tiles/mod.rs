@@ -56,7 +56,7 @@ impl Window {
         let y = self.y.max(other.y);
         let right = (self.x + self.width).min(other.x + other.width);
         let bottom = (self.y + self.height).min(other.y + other.height);
-        (right > x && bottom > y).then_some(Window {
+        (right > x && bottom > y).then(|| Window {
             x,
             y,
             width: right - x,
