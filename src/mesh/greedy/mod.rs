@@ -335,7 +335,7 @@ fn mesh_grid<H: Height>(
     optimise: Option<usize>,
 ) -> Result<GridMesh, GreedyError> {
     if let (GreedyTarget::MaxError(e), Some(passes)) = (target, optimise) {
-        if grid.has_no_nodata() && parts::splits(grid.width, grid.height) {
+        if parts::splits(grid.width, grid.height) {
             check(&grid)?;
             if let Some(mesh) = parts::mesh_in_parts(&grid, e, passes) {
                 return Ok(mesh);

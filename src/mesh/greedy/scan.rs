@@ -87,6 +87,14 @@ impl<'a, H: Height> Grid<'a, H> {
         self.no_nodata
     }
 
+    /// Whether sample `s` may be inserted (it is not on a shared side).
+    #[inline]
+    pub fn may_be_candidate(&self, s: usize) -> bool {
+        let (x, y) = ((s % self.width) as i64, (s / self.width) as i64);
+        let (columns, rows) = (self.candidate_columns, self.candidate_rows);
+        (columns.0..=columns.1).contains(&x) && (rows.0..=rows.1).contains(&y)
+    }
+
     /// Whether sample `s` is valid.
     #[inline]
     pub fn is_valid(&self, s: usize) -> bool {
@@ -474,61 +482,56 @@ pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> O
     })
 }
 
-/// [`assess`] for a triangle that meets nodata, sample by sample: a valid sample next
-/// to nodata (in scan order) is its candidate, so nodata is cut out first.
+/// [`assess`] for a triangle that meets nodata, sample by sample. While it holds valid
+/// samples besides its corners it must split (infinite error), at the one nearest the
+/// centroid of its nodata samples, so that nodata is cut out with few vertices: beyond
+/// a chord of a void's outline that is the valid sample farthest out (a corner of the
+/// valid samples' hull), inside a triangle over a hole one on the hole's rim. Samples on
+/// shared sides are never candidates.
 fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let (p, z) = (v.map(Vertex::point), v.map(|v| v.z));
     let corners = p.map(|q| grid.sample(q));
+    let may_insert = |s: usize| !corners.contains(&s) && grid.may_be_candidate(s);
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
-    let (mut touches_void, mut inner_valid) = (false, u32::MAX);
-    let mut edge_of_void = u32::MAX;
-    let mut previous_void = false;
+    let (mut voids, mut void_x, mut void_y) = (0u64, 0u64, 0u64);
     scan(grid.width, p, z, |s, zs| {
         if !grid.is_valid(s) {
-            touches_void = true;
-            if !previous_void && inner_valid.wrapping_add(1) == s as u32 {
-                edge_of_void = inner_valid;
-            }
-            previous_void = true;
-            return;
-        }
-        let was_void = std::mem::replace(&mut previous_void, false);
-        let e = (zs - grid.heights[s].into()).abs();
-        // Corners are exact up to rounding; they are checked only when they would win.
-        if (e > error || candidate == u32::MAX || touches_void) && !corners.contains(&s) {
-            inner_valid = s as u32;
-            if was_void && edge_of_void == u32::MAX {
-                edge_of_void = s as u32;
-            }
+            voids += 1;
+            void_x += (s % grid.width) as u64;
+            void_y += (s / grid.width) as u64;
+        } else if may_insert(s) {
+            // Corners are exact up to rounding; they are never candidates.
+            let e = (zs - grid.heights[s].into()).abs();
             if e > error || candidate == u32::MAX {
-                error = e;
-                candidate = s as u32;
+                (error, candidate) = (e, s as u32);
             }
         }
     });
-    if touches_void {
-        if inner_valid == u32::MAX {
-            return Assessment {
-                error: 0.0,
-                candidate: u32::MAX,
-                touches_void,
-            };
-        }
-        let pick = if edge_of_void != u32::MAX {
-            edge_of_void
-        } else {
-            inner_valid
-        };
+    if voids == 0 || candidate == u32::MAX {
         return Assessment {
-            error: f64::INFINITY,
-            candidate: pick,
-            touches_void,
+            error: if voids == 0 { error } else { 0.0 },
+            candidate,
+            touches_void: voids > 0,
         };
     }
+    let centre = (void_x as f64 / voids as f64, void_y as f64 / voids as f64);
+    let mut nearest = (f64::INFINITY, u32::MAX);
+    scan(grid.width, p, z, |s, _| {
+        if grid.is_valid(s) && may_insert(s) {
+            let (dx, dy) = (
+                (s % grid.width) as f64 - centre.0,
+                (s / grid.width) as f64 - centre.1,
+            );
+            let distance = dx * dx + dy * dy;
+            if distance < nearest.0 {
+                nearest = (distance, s as u32);
+            }
+        }
+    });
     Assessment {
-        error,
-        candidate,
-        touches_void,
+        error: f64::INFINITY,
+        candidate: nearest.1,
+        touches_void: true,
     }
 }
 
