@@ -159,7 +159,7 @@ fn fit_seam<H: Height>(
     }
     let valid = |k: usize| grid.is_valid(sample_at(k));
     let mut ends = vec![0];
-    ends.extend((1..n - 1).filter(|&k| valid(k) && near_nodata(grid, point_at(k))));
+    ends.extend((1..n - 1).filter(|&k| valid(k) && grid.next_to_nodata(sample_at(k))));
     ends.push(n - 1);
     let mut vertices = Vec::new();
     for piece in ends.windows(2) {
@@ -173,14 +173,6 @@ fn fit_seam<H: Height>(
         }
     }
     vertices
-}
-
-/// Whether a sample among the eight neighbours of grid point `(x, y)` is nodata.
-fn near_nodata<H: Height>(grid: &Grid<H>, (x, y): (usize, usize)) -> bool {
-    let rows = y.saturating_sub(1)..=(y + 1).min(grid.height - 1);
-    let columns = x.saturating_sub(1)..=(x + 1).min(grid.width - 1);
-    rows.flat_map(|y| columns.clone().map(move |x| y * grid.width + x))
-        .any(|s| !grid.is_valid(s))
 }
 
 /// The samples `1..n − 1` of a line of `n` (heights `height_at`) that must be vertices
@@ -545,7 +537,7 @@ mod tests {
         let heights = vec![0.0; w * h];
         let grid = Grid::new(w, h, &heights, &words);
         (0..w * h)
-            .map(|s| valid[s] && !near_nodata(&grid, (s % w, s / w)))
+            .map(|s| valid[s] && !grid.next_to_nodata(s))
             .collect()
     }
 

@@ -95,6 +95,15 @@ impl<'a, H: Height> Grid<'a, H> {
         (columns.0..=columns.1).contains(&x) && (rows.0..=rows.1).contains(&y)
     }
 
+    /// Whether a sample among the eight around sample `s` is nodata.
+    pub fn next_to_nodata(&self, s: usize) -> bool {
+        let (x, y) = (s % self.width, s / self.width);
+        let rows = y.saturating_sub(1)..=(y + 1).min(self.height - 1);
+        let columns = x.saturating_sub(1)..=(x + 1).min(self.width - 1);
+        rows.flat_map(|y| columns.clone().map(move |x| y * self.width + x))
+            .any(|n| !self.is_valid(n))
+    }
+
     /// Whether sample `s` is valid.
     #[inline]
     pub fn is_valid(&self, s: usize) -> bool {
@@ -483,23 +492,24 @@ pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> O
 }
 
 /// [`assess`] for a triangle that meets nodata, sample by sample. While it holds valid
-/// samples besides its corners it must split (infinite error), at the one nearest the
-/// centroid of its nodata samples, so that nodata is cut out with few vertices: beyond
-/// a chord of a void's outline that is the valid sample farthest out (a corner of the
-/// valid samples' hull), inside a triangle over a hole one on the hole's rim. Samples on
-/// shared sides are never candidates.
+/// samples besides its corners it must split (infinite error), at the one farthest
+/// towards its nodata (along the line from its valid samples' centroid to its nodata
+/// samples'), preferably one next to nodata: beyond a chord of a void's outline, the
+/// corner of the valid samples' hull farthest out; over a hole, a sample on its rim.
+/// So nodata is cut out with few vertices (srtm3_utm32_f32's NaN collar at E = 50:
+/// 611 triangles, against 1776 when the first valid sample next to nodata in scan
+/// order split). Samples on shared sides are never candidates.
 fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     let (p, z) = (v.map(Vertex::point), v.map(|v| v.z));
     let corners = p.map(|q| grid.sample(q));
     let may_insert = |s: usize| !corners.contains(&s) && grid.may_be_candidate(s);
     let (mut error, mut candidate) = (0.0f64, u32::MAX);
-    let (mut voids, mut void_x, mut void_y) = (0u64, 0u64, 0u64);
+    let (mut voids, mut insertable) = (Centroid::default(), Centroid::default());
     scan(grid.width, p, z, |s, zs| {
         if !grid.is_valid(s) {
-            voids += 1;
-            void_x += (s % grid.width) as u64;
-            void_y += (s / grid.width) as u64;
+            voids.add(grid, s);
         } else if may_insert(s) {
+            insertable.add(grid, s);
             // Corners are exact up to rounding; they are never candidates.
             let e = (zs - grid.heights[s].into()).abs();
             if e > error || candidate == u32::MAX {
@@ -507,31 +517,63 @@ fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
             }
         }
     });
-    if voids == 0 || candidate == u32::MAX {
+    if voids.count == 0 || candidate == u32::MAX {
         return Assessment {
-            error: if voids == 0 { error } else { 0.0 },
+            error: if voids.count == 0 { error } else { 0.0 },
             candidate,
-            touches_void: voids > 0,
+            touches_void: voids.count > 0,
         };
     }
-    let centre = (void_x as f64 / voids as f64, void_y as f64 / voids as f64);
-    let mut nearest = (f64::INFINITY, u32::MAX);
+    let (from, to) = (insertable.point(), voids.point());
+    let towards_nodata = |s: usize| {
+        let (x, y) = ((s % grid.width) as f64, (s / grid.width) as f64);
+        (x - from.0) * (to.0 - from.0) + (y - from.1) * (to.1 - from.1)
+    };
+    let mut farthest = (f64::NEG_INFINITY, u32::MAX);
+    let mut on_rim = (f64::NEG_INFINITY, u32::MAX);
     scan(grid.width, p, z, |s, _| {
         if grid.is_valid(s) && may_insert(s) {
-            let (dx, dy) = (
-                (s % grid.width) as f64 - centre.0,
-                (s / grid.width) as f64 - centre.1,
-            );
-            let distance = dx * dx + dy * dy;
-            if distance < nearest.0 {
-                nearest = (distance, s as u32);
+            let reach = towards_nodata(s);
+            if reach > farthest.0 {
+                farthest = (reach, s as u32);
+            }
+            if reach > on_rim.0 && grid.next_to_nodata(s) {
+                on_rim = (reach, s as u32);
             }
         }
     });
     Assessment {
         error: f64::INFINITY,
-        candidate: nearest.1,
+        candidate: if on_rim.1 != u32::MAX {
+            on_rim.1
+        } else {
+            farthest.1
+        },
         touches_void: true,
+    }
+}
+
+/// A running sum of sample positions.
+#[derive(Debug, Default, Clone, Copy)]
+struct Centroid {
+    count: u64,
+    x: u64,
+    y: u64,
+}
+
+impl Centroid {
+    /// Adds sample `s` of `grid`.
+    #[inline]
+    fn add<H: Height>(&mut self, grid: &Grid<H>, s: usize) {
+        self.count += 1;
+        self.x += (s % grid.width) as u64;
+        self.y += (s / grid.width) as u64;
+    }
+
+    /// The mean (column, row) of the samples added (at least one).
+    fn point(&self) -> (f64, f64) {
+        let n = self.count as f64;
+        (self.x as f64 / n, self.y as f64 / n)
     }
 }
 
