@@ -71,6 +71,11 @@ pub struct GreedyMesher<'a, H: Height = f64> {
     settled: f64,
     /// Whether a triangle over a tolerance first tries a flip that brings it within.
     resolving_flips: bool,
+    /// Triangles assessed as covering nodata (left out of the mesh).
+    left_out: usize,
+    /// Whether a triangle budget counts the triangles left out too (the default: the
+    /// mesh then never exceeds it; otherwise it may by a few, see [`mesh_grid`]).
+    budget_counts_left_out: bool,
 }
 
 impl<'a, H: Height> GreedyMesher<'a, H> {
@@ -94,6 +99,8 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             to_legalise: Vec::new(),
             settled: 0.0,
             resolving_flips: false,
+            left_out: 0,
+            budget_counts_left_out: true,
         }
     }
 
@@ -109,6 +116,15 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         self.tin.triangle_count()
     }
 
+    /// Triangles a budget counts: those of the mesh (all, with
+    /// `budget_counts_left_out`).
+    fn counted_triangles(&self) -> usize {
+        match self.budget_counts_left_out {
+            true => self.triangle_count(),
+            false => self.triangle_count() - self.left_out,
+        }
+    }
+
     /// Inserts vertices until `target` is met (or nothing is left to insert).
     pub fn run(&mut self, target: GreedyTarget) {
         if let GreedyTarget::MaxError(e) = target {
@@ -120,7 +136,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
                 GreedyTarget::Triangles(n) => {
-                    error == 0.0 || self.triangle_count() + self.growth(worst) > n
+                    error == 0.0 || self.counted_triangles() + self.growth(worst) > n
                 }
             };
             if done {
@@ -244,7 +260,13 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
     /// Records triangle `t`'s assessment and queues it when it is over the settled error.
     #[inline]
     fn store(&mut self, t: u32, assessment: Assessment) {
-        self.assessments[t as usize] = assessment;
+        let was = std::mem::replace(&mut self.assessments[t as usize], assessment);
+        if assessment.touches_void != was.touches_void {
+            match assessment.touches_void {
+                true => self.left_out += 1,
+                false => self.left_out -= 1,
+            }
+        }
         if assessment.error > self.settled {
             self.queue.set(t, assessment.error);
         } else {
@@ -335,14 +357,34 @@ fn mesh_grid<H: Height>(
     optimise: Option<usize>,
 ) -> Result<GridMesh, GreedyError> {
     if let (GreedyTarget::MaxError(e), Some(passes)) = (target, optimise) {
-        if grid.has_no_nodata() && parts::splits(grid.width, grid.height) {
+        if parts::splits(grid.width, grid.height) {
             check(&grid)?;
             if let Some(mesh) = parts::mesh_in_parts(&grid, e, passes) {
                 return Ok(mesh);
             }
         }
     }
+    let mesh = mesh_in_one_piece(grid, target, optimise, false)?;
+    match target {
+        // Triangles covering nodata that the budget did not count became triangles of
+        // the mesh (rare): count them all, so the mesh keeps within the budget.
+        GreedyTarget::Triangles(n) if mesh.triangles.len() > n => {
+            mesh_in_one_piece(grid, target, optimise, true)
+        }
+        _ => Ok(mesh),
+    }
+}
+
+/// [`mesh_grid`] in one piece; a triangle budget counts the triangles left out over
+/// nodata when `count_left_out`.
+fn mesh_in_one_piece<H: Height>(
+    grid: Grid<H>,
+    target: GreedyTarget,
+    optimise: Option<usize>,
+    count_left_out: bool,
+) -> Result<GridMesh, GreedyError> {
     let mut mesher = GreedyMesher::new(grid)?;
+    mesher.budget_counts_left_out = count_left_out;
     if optimise.is_some() {
         mesher = mesher.with_resolving_flips();
     }
@@ -493,6 +535,31 @@ mod tests {
             assert_eq!(covered[s], valid[s], "sample {s}");
         }
         assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 1.0);
+    }
+
+    #[test]
+    fn a_budget_around_nodata_counts_the_mesh_triangles_only() {
+        let (w, h) = (90, 70);
+        let heights = terrain(w, h);
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        for s in 0..w * h {
+            let (x, y) = ((s % w) as f64, (s / w) as f64);
+            let collar = 9.0 * x < 60.0 + y;
+            let hole = (x - 50.0).powi(2) + (y - 30.0).powi(2) < 80.0;
+            if collar || hole {
+                valid.set(s, false);
+            }
+        }
+        let mut last = f64::INFINITY;
+        for n in [60, 250, 1000, 3000] {
+            let mesh =
+                greedy_mesh(w, h, &heights, &valid, GreedyTarget::Triangles(n), Some(2)).unwrap();
+            let count = mesh.triangles.len();
+            assert!(count <= n && count + 3 >= n, "{count} for a budget of {n}");
+            let error = mesh_error(&mesh, &heights, &heights, &valid);
+            assert!(error.rmse < last);
+            last = error.rmse;
+        }
     }
 
     #[test]

@@ -15,7 +15,7 @@ use std::collections::HashMap;
 
 use rayon::prelude::*;
 
-use super::scan::{Grid, Height, SharedSides};
+use super::scan::{scan, Grid, Height, SharedSides};
 use super::triangulation::NONE;
 use super::{GreedyMesher, GreedyTarget};
 use crate::mesh::GridMesh;
@@ -56,19 +56,21 @@ fn cuts(n: usize) -> Vec<usize> {
     (0..=parts).map(|k| k * (n - 1) / parts).collect()
 }
 
-/// The mesh of `grid` (every sample valid) with every sample within `tolerance`, the
-/// parts meshed in parallel, each with `passes` error-lowering passes; `None` when the
-/// seams need too few vertices for the split to pay (see [`dense_enough`]).
+/// The mesh of `grid` with every valid sample within `tolerance` (nodata left out as
+/// in one piece), the parts meshed in parallel, each with `passes` error-lowering
+/// passes; `None` when the seams need too few vertices for the split to pay (see
+/// [`dense_enough`]) or a part would strand a valid seam sample (see
+/// [`GreedyMesher::strands_shared_samples`]).
 pub fn mesh_in_parts<H: Height>(grid: &Grid<H>, tolerance: f64, passes: usize) -> Option<GridMesh> {
     let parts = layout(grid, tolerance * (1.0 - SEAM_MARGIN));
     if !dense_enough(&parts) {
         return None;
     }
-    let meshes: Vec<GridMesh> = parts
+    let meshes: Option<Vec<GridMesh>> = parts
         .par_iter()
         .map(|part| mesh_part(grid, part, tolerance, passes))
         .collect();
-    Some(join(grid.width, grid.height, &parts, &meshes))
+    Some(join(grid.width, grid.height, &parts, &meshes?))
 }
 
 /// Whether the seams hold at least [`MIN_SEAM_DENSITY`] fitted vertices a sample: a
@@ -101,7 +103,6 @@ fn dense_enough(parts: &[Part]) -> bool {
 /// The parts of `grid` with their seams fitted within `seam_tolerance`.
 fn layout<H: Height>(grid: &Grid<H>, seam_tolerance: f64) -> Vec<Part> {
     let (columns, rows) = (cuts(grid.width), cuts(grid.height));
-    let height_at = |x: usize, y: usize| -> f64 { grid.heights[y * grid.width + x].into() };
     let mut parts = Vec::new();
     for j in 0..rows.len() - 1 {
         for i in 0..columns.len() - 1 {
@@ -113,11 +114,11 @@ fn layout<H: Height>(grid: &Grid<H>, seam_tolerance: f64) -> Vec<Part> {
                 first_column: i > 0,
             };
             let fit_row = |y: usize, on: bool| match on {
-                true => fit_line(x1 - x0 + 1, |k| height_at(x0 + k, y), seam_tolerance),
+                true => fit_seam(grid, x1 - x0 + 1, |k| (x0 + k, y), seam_tolerance),
                 false => Vec::new(),
             };
             let fit_column = |x: usize, on: bool| match on {
-                true => fit_line(y1 - y0 + 1, |k| height_at(x, y0 + k), seam_tolerance),
+                true => fit_seam(grid, y1 - y0 + 1, |k| (x, y0 + k), seam_tolerance),
                 false => Vec::new(),
             };
             parts.push(Part {
@@ -134,6 +135,44 @@ fn layout<H: Height>(grid: &Grid<H>, seam_tolerance: f64) -> Vec<Part> {
         }
     }
     parts
+}
+
+/// The samples `1..n − 1` of the seam of `n` samples at grid points `point_at(k)` that
+/// must be vertices: every valid one with nodata among its eight neighbours (so that
+/// both parts cut the voids out beside it without a vertex on the seam), and within
+/// each stretch of valid samples between those, the vertices that bring its linear
+/// interpolation within `tolerance` ([`fit_line`]). Stretches between two vertices
+/// hold only valid samples or only nodata. Sorted.
+fn fit_seam<H: Height>(
+    grid: &Grid<H>,
+    n: usize,
+    point_at: impl Fn(usize) -> (usize, usize),
+    tolerance: f64,
+) -> Vec<usize> {
+    let sample_at = |k: usize| {
+        let (x, y) = point_at(k);
+        y * grid.width + x
+    };
+    let height_at = |k: usize| -> f64 { grid.heights[sample_at(k)].into() };
+    if grid.has_no_nodata() {
+        return fit_line(n, height_at, tolerance);
+    }
+    let valid = |k: usize| grid.is_valid(sample_at(k));
+    let mut ends = vec![0];
+    ends.extend((1..n - 1).filter(|&k| valid(k) && grid.next_to_nodata(sample_at(k))));
+    ends.push(n - 1);
+    let mut vertices = Vec::new();
+    for piece in ends.windows(2) {
+        let (a, b) = (piece[0], piece[1]);
+        if b > a + 1 && valid(a) && valid(a + 1) && valid(b) {
+            let fitted = fit_line(b - a + 1, |k| height_at(a + k), tolerance);
+            vertices.extend(fitted.into_iter().map(|k| a + k));
+        }
+        if b < n - 1 {
+            vertices.push(b);
+        }
+    }
+    vertices
 }
 
 /// The samples `1..n − 1` of a line of `n` (heights `height_at`) that must be vertices
@@ -161,21 +200,49 @@ fn fit_line(n: usize, height_at: impl Fn(usize) -> f64, tolerance: f64) -> Vec<u
     vertices
 }
 
-/// The mesh of one part (local sample indices).
-fn mesh_part<H: Height>(grid: &Grid<H>, part: &Part, tolerance: f64, passes: usize) -> GridMesh {
+/// The mesh of one part (local sample indices); `None` when a triangle it leaves out
+/// over nodata strands a valid sample of a shared side (see
+/// [`GreedyMesher::strands_shared_samples`]).
+fn mesh_part<H: Height>(
+    grid: &Grid<H>,
+    part: &Part,
+    tolerance: f64,
+    passes: usize,
+) -> Option<GridMesh> {
     let ((x0, y0), (w, h)) = (part.origin, part.size);
     let mut heights = Vec::with_capacity(w * h);
     for y in y0..y0 + h {
         let row = y * grid.width + x0;
         heights.extend_from_slice(&grid.heights[row..row + w]);
     }
-    let valid = vec![u64::MAX; (w * h).div_ceil(64)];
+    let valid = part_validity(grid, part);
     let local = Grid::new(w, h, &heights, &valid).with_shared_sides(part.shared);
     let mut mesher = GreedyMesher::unassessed(local).with_resolving_flips();
     mesher.insert_seams(part);
     mesher.assess_touched();
     mesher.run(GreedyTarget::MaxError(tolerance));
-    mesher.optimise_flips(Some(tolerance), passes).0
+    if mesher.strands_shared_samples() {
+        return None;
+    }
+    Some(mesher.optimise_flips(Some(tolerance), passes).0)
+}
+
+/// The validity bits of `part`'s samples (a `BitVec<u64, Lsb0>`'s words).
+fn part_validity<H: Height>(grid: &Grid<H>, part: &Part) -> Vec<u64> {
+    let ((x0, y0), (w, h)) = (part.origin, part.size);
+    if grid.has_no_nodata() {
+        return vec![u64::MAX; (w * h).div_ceil(64)];
+    }
+    let mut valid = vec![0u64; (w * h).div_ceil(64)];
+    for y in 0..h {
+        for x in 0..w {
+            if grid.is_valid((y0 + y) * grid.width + x0 + x) {
+                let s = y * w + x;
+                valid[s / 64] |= 1 << (s % 64);
+            }
+        }
+    }
+    valid
 }
 
 impl<H: Height> GreedyMesher<'_, H> {
@@ -202,6 +269,26 @@ impl<H: Height> GreedyMesher<'_, H> {
                 edge = self.border_edge_from(p, touched);
             }
         }
+    }
+
+    /// Whether a triangle left out over nodata holds a valid sample of a shared side
+    /// besides its corners: no part would cover it (its samples are never candidates),
+    /// so the grid is then meshed in one piece. The seam fit makes this rare: a valid
+    /// seam sample next to nodata is a vertex.
+    fn strands_shared_samples(&self) -> bool {
+        (0..self.triangle_count() as u32)
+            .filter(|&t| self.assessments[t as usize].touches_void)
+            .any(|t| {
+                let v = self.tin.triangle_vertices(t);
+                let corners = v.map(|v| self.grid.sample(v.point()));
+                let mut stranded = false;
+                scan(self.grid.width, v.map(|v| v.point()), [0.0; 3], |s, _| {
+                    stranded |= self.grid.is_valid(s)
+                        && !self.grid.may_be_candidate(s)
+                        && !corners.contains(&s);
+                });
+                stranded
+            })
     }
 
     /// The border half-edge starting at vertex `v` among `triangles`.
@@ -367,5 +454,156 @@ mod tests {
         assert!(splits(w, h) && one.triangles.len() > 1000);
         assert_eq!(one, on(2));
         assert_eq!(one, on(3));
+    }
+
+    /// Nodata for [`terrain`]'s grid: an oblique collar on two sides, discs across
+    /// seams and on a corner where four parts meet, speckle, and a valid line along a
+    /// row seam between two rows of nodata (samples no triangle can cover).
+    fn voids(w: usize, h: usize) -> BitVec<u64, Lsb0> {
+        let (columns, rows) = (cuts(w), cuts(h));
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        let discs = [
+            (150, 150, 20),
+            (columns[1], 200, 9),
+            (300, rows[1], 12),
+            (columns[2], rows[2], 5),
+        ];
+        let mut noise = 0x9e37_79b9_7f4a_7c15u64;
+        for s in 0..w * h {
+            let (x, y) = (s % w, s / w);
+            let collar = 30 * x < 180 + y || 23 * y < 92 + x;
+            let in_disc = discs.iter().any(|&(cx, cy, r)| {
+                let (dx, dy) = (x as i64 - cx as i64, y as i64 - cy as i64);
+                dx * dx + dy * dy <= r * r
+            });
+            let line = (350..420).contains(&x) && (y + 1 == rows[1] || y == rows[1] + 1);
+            noise ^= noise << 13;
+            noise ^= noise >> 7;
+            noise ^= noise << 17;
+            let speckle = x > w / 2 && noise.is_multiple_of(300);
+            if collar || in_disc || line || speckle {
+                valid.set(s, false);
+            }
+        }
+        valid
+    }
+
+    /// A mesh around nodata: every triangle counter-clockwise, no vertex and no covered
+    /// sample at nodata, every edge once a direction, no vertex inside an edge (no
+    /// T-junction), the areas within the rectangle's.
+    fn assert_conforming_around_voids(mesh: &GridMesh, valid: &BitSlice<u64, Lsb0>) {
+        let point = |v: u32| {
+            let (x, y) = mesh.vertex_position(v);
+            (x as i64, y as i64)
+        };
+        let vertices: std::collections::HashSet<(i64, i64)> =
+            (0..mesh.vertices.len() as u32).map(point).collect();
+        assert!(mesh.vertices.iter().all(|&s| valid[s as usize]));
+        let (mut edges, mut area) = (std::collections::HashSet::new(), 0);
+        for t in &mesh.triangles {
+            let p = t.map(point);
+            let twice = orient(p[0], p[1], p[2]);
+            assert!(twice > 0, "triangle {p:?} is flipped");
+            area += twice;
+            for k in 0..3 {
+                let (a, b) = (p[k], p[(k + 1) % 3]);
+                assert!(edges.insert((a, b)), "edge {a:?}-{b:?} twice");
+                let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+                let steps = gcd(dx.unsigned_abs(), dy.unsigned_abs()) as i64;
+                for j in 1..steps {
+                    let inside = (a.0 + j * dx / steps, a.1 + j * dy / steps);
+                    assert!(!vertices.contains(&inside), "{inside:?} inside {a:?}-{b:?}");
+                }
+            }
+        }
+        assert!(area <= 2 * (mesh.width as i64 - 1) * (mesh.height as i64 - 1));
+        let heights = vec![0.0; mesh.width * mesh.height];
+        let (_, covered) = crate::mesh::rasterise::rasterise(mesh, &heights);
+        assert!(covered.iter_ones().all(|s| valid[s]), "nodata covered");
+    }
+
+    /// Greatest common divisor.
+    fn gcd(a: u64, b: u64) -> u64 {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+
+    /// Valid samples with no nodata among their eight neighbours.
+    fn away_from_nodata(w: usize, h: usize, valid: &BitSlice<u64, Lsb0>) -> BitVec<u64, Lsb0> {
+        let words = valid.to_bitvec().into_vec();
+        let heights = vec![0.0; w * h];
+        let grid = Grid::new(w, h, &heights, &words);
+        (0..w * h)
+            .map(|s| valid[s] && !grid.next_to_nodata(s))
+            .collect()
+    }
+
+    #[test]
+    fn parts_around_nodata_conform_hold_the_tolerance_and_cover_what_they_can() {
+        let (w, h) = (530, 400);
+        let heights = terrain(w, h);
+        let valid = voids(w, h);
+        let words = valid.as_raw_slice();
+        let grid = Grid::new(w, h, &heights, words);
+        let away = away_from_nodata(w, h, &valid);
+        for tolerance in [0.5, 3.0] {
+            let mesh = mesh_in_parts(&grid, tolerance, 2).expect("split in parts");
+            assert_conforming_around_voids(&mesh, &valid);
+            let error = mesh_error(&mesh, &heights, &heights, &valid);
+            assert!(error.max_error <= tolerance, "{}", error.max_error);
+            let (_, covered) = crate::mesh::rasterise::rasterise(&mesh, &heights);
+            let stranded = (away.clone() & !covered).count_ones();
+            assert_eq!(
+                stranded, 0,
+                "E = {tolerance}: valid samples away from nodata"
+            );
+        }
+    }
+
+    #[test]
+    fn parts_around_nodata_are_the_same_on_one_thread_and_on_several() {
+        let (w, h) = (400, 530);
+        let heights: Vec<f32> = terrain(w, h).iter().map(|&z| z as f32).collect();
+        let valid = voids(w, h);
+        let grid = Grid::new(w, h, &heights, valid.as_raw_slice());
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| mesh_in_parts(&grid, 1.0, 2).expect("split in parts"))
+        };
+        let one = on(1);
+        assert!(one.triangles.len() > 1000);
+        assert_eq!(one, on(2));
+        assert_eq!(one, on(3));
+    }
+
+    #[test]
+    fn a_seam_sample_only_nodata_triangles_reach_is_stranded() {
+        // 5 × 3, row 0 shared, valid only there and at the two lower corners: the
+        // triangle (0, 0), (4, 0), (4, 2) holds nodata and, besides its corners, only
+        // row 0's valid samples.
+        let (w, h) = (5, 3);
+        let heights = vec![0.0f64; w * h];
+        let mut valid = bitvec![u64, Lsb0; 0; w * h];
+        for s in [0, 1, 2, 3, 4, 2 * w, 3 * w - 1] {
+            valid.set(s, true);
+        }
+        let shared = SharedSides {
+            first_row: true,
+            ..SharedSides::default()
+        };
+        let grid = Grid::new(w, h, &heights, valid.as_raw_slice()).with_shared_sides(shared);
+        let mut mesher = GreedyMesher::new(grid).unwrap();
+        mesher.run(GreedyTarget::MaxError(1.0));
+        assert!(mesher.strands_shared_samples());
+        let unshared = Grid::new(w, h, &heights, valid.as_raw_slice());
+        let mut mesher = GreedyMesher::new(unshared).unwrap();
+        mesher.run(GreedyTarget::MaxError(1.0));
+        assert!(!mesher.strands_shared_samples());
     }
 }
