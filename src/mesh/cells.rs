@@ -444,6 +444,19 @@ impl CellTree {
         cell.level > 0 || self.valid_corners(cell).count_ones() >= 3
     }
 
+    /// Whether some side may hold vertices that are no leaf's corner: a fine border is
+    /// set or a midpoint was ever marked.
+    #[inline]
+    pub fn may_have_side_extras(&self) -> bool {
+        self.fine_borders != FineBorders::default() || !self.midpoints.is_empty()
+    }
+
+    /// Whether some sample of the grid is nodata.
+    #[inline]
+    pub fn has_nodata(&self) -> bool {
+        self.validity.is_some()
+    }
+
     /// The leaves (grid cells with fewer than three valid corners excluded), depth first.
     pub fn leaves(&self) -> &[Cell] {
         &self.leaves

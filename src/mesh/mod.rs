@@ -17,6 +17,7 @@ pub mod rasterise;
 pub mod tiled;
 pub mod triangulate;
 pub mod varres;
+pub mod vertex_set;
 
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;
