@@ -65,27 +65,17 @@ pub fn triangulate(
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 5 / 2 + 16);
     let mut scratch = Scratch::default();
     let mut push = |t: [u32; 3]| triangles.push(t);
+    let mut block = GridBlock::default();
+    let nodata = tree.has_nodata();
     for &cell in tree.leaves() {
-        if cell.level == 0 {
-            let ring = numbered_grid_cell(tree, cell, &numbers);
+        if cell.level > 0 {
+            let maps = (&corners, &numbers);
+            leaf_triangles(tree, cell, shape(cell), maps, &mut scratch, &mut push);
+        } else if nodata {
+            let ring = numbered_grid_cell(cell, &numbers);
             grid_cell_triangles(tree.valid_corners(cell), ring, &mut push);
         } else {
-            let bounds = tree.bounds(cell);
-            let (x0, y0, x1, y1) = bounds;
-            let ring = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| numbers.number(x, y));
-            match shape(cell) {
-                Shape::Two(diagonal) if !has_hanging(bounds, ring, &corners) => {
-                    two_triangles(diagonal, ring, &mut push);
-                }
-                shape => {
-                    let sides = numbered_ring(bounds, ring, &corners, &numbers, &mut scratch);
-                    let centre = match shape {
-                        Shape::Fan => numbers.number((x0 + x1) / 2, (y0 + y1) / 2),
-                        Shape::Two(_) => 0,
-                    };
-                    emit_ring(&scratch.ring, sides, shape, centre, &mut push);
-                }
-            }
+            grid_cell_triangles(0b1111, block.corners(cell, &numbers, height), &mut push);
         }
     }
     GridMesh {
@@ -99,20 +89,74 @@ pub fn triangulate(
 /// The vertex numbers of grid cell `cell`'s corners in [`grid_cell_ring`] order (those of
 /// its nodata corners are meaningless).
 #[inline]
-fn numbered_grid_cell(tree: &CellTree, cell: Cell, numbers: &VertexNumbers) -> [u32; 4] {
+fn numbered_grid_cell(cell: Cell, numbers: &VertexNumbers) -> [u32; 4] {
     let (x, y) = cell.position();
-    let tl = numbers.number(x, y);
-    let bl = numbers.number(x, y + 1);
-    if tree.valid_corners(cell) == 0b1111 {
-        // Both corners of a row are vertices: their numbers follow each other.
+    [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)].map(|(x, y)| numbers.number(x, y))
+}
+
+/// The vertex numbers of the grid cells under one split level-1 node when no sample is
+/// nodata: every sample of the node is then a vertex, so the numbers along a row follow
+/// each other and one look-up a row gives them all.
+#[derive(Debug, Default)]
+struct GridBlock {
+    /// The node's top-left sample.
+    origin: Option<(usize, usize)>,
+    /// The number of the node's first sample on each of its rows.
+    rows: [u32; 3],
+}
+
+impl GridBlock {
+    /// The corner numbers of grid cell `cell` in [`grid_cell_ring`] order, on a grid of
+    /// `height` rows.
+    #[inline]
+    fn corners(&mut self, cell: Cell, numbers: &VertexNumbers, height: usize) -> [u32; 4] {
+        let (x, y) = cell.position();
+        let origin = (x & !1, y & !1);
+        if self.origin != Some(origin) {
+            self.origin = Some(origin);
+            for (k, row) in self.rows.iter_mut().enumerate() {
+                if origin.1 + k < height {
+                    *row = numbers.number(origin.0, origin.1 + k);
+                }
+            }
+        }
+        let (dx, dy) = ((x - origin.0) as u32, y - origin.1);
+        let (tl, bl) = (self.rows[dy] + dx, self.rows[dy + 1] + dx);
         [tl, tl + 1, bl + 1, bl]
-    } else {
-        [
-            tl,
-            numbers.number(x + 1, y),
-            numbers.number(x + 1, y + 1),
-            bl,
-        ]
+    }
+}
+
+/// Emits the triangles of leaf `cell` (level ≥ 1) in `shape`, numbered by `numbers`, its
+/// hanging vertices read from `corners`.
+#[inline]
+fn leaf_triangles(
+    tree: &CellTree,
+    cell: Cell,
+    shape: Shape,
+    (corners, numbers): (&CornerMaps, &VertexNumbers),
+    scratch: &mut Scratch,
+    emit: &mut impl FnMut([u32; 3]),
+) {
+    let bounds = tree.bounds(cell);
+    let (x0, y0, x1, y1) = bounds;
+    let ring = [
+        numbers.number(x0, y0),
+        numbers.number(x1, y0),
+        numbers.number(x1, y1),
+        numbers.number(x0, y1),
+    ];
+    match shape {
+        Shape::Two(diagonal) if !has_hanging(bounds, ring, corners) => {
+            two_triangles(diagonal, ring, emit);
+        }
+        shape => {
+            let sides = numbered_ring(bounds, ring, corners, numbers, scratch);
+            let centre = match shape {
+                Shape::Fan => numbers.number((x0 + x1) / 2, (y0 + y1) / 2),
+                Shape::Two(_) => 0,
+            };
+            emit_ring(&scratch.ring, sides, shape, centre, emit);
+        }
     }
 }
 
