@@ -39,8 +39,9 @@ pub struct Scratch {
 /// in raster order of their samples, triangles come leaf after leaf in the order of
 /// [`CellTree::leaves`], each leaf's as [`cell_triangles`] makes them.
 ///
-/// The vertices are found first ([`vertex_set`]), so every triangle is written once with
-/// its final vertex numbers, and a side's hanging vertices are read from a bitmap.
+/// The vertices are found first ([`super::vertex_set`]), so every triangle is written
+/// once with its final vertex numbers, and a side's hanging vertices are read from a
+/// bitmap.
 ///
 /// # Panics
 /// If the grid has more than `u32::MAX` samples or `heights` is not the tree's grid.
