@@ -7,7 +7,8 @@
 //!   map at three planes, those whose meshes first reach about 1 %, 10 % and 50 % of the
 //!   full grid's triangles (output triangles per second). Before the groups run, each
 //!   plane's mesh time is printed as a share of the full decode's ("coarse mesh / full
-//!   decode = X %"): the cost of another level of detail once the stream is decoded;
+//!   decode = X %"): the cost of another level of detail once the stream is decoded,
+//!   then its CPU time a call as triangles per second and fingerprints of the mesh;
 //! * **tolerance E**: `Mesher::build(MeshTarget::Tolerance(E), ..)` with a fresh mesher
 //!   (error pyramid included) and with one whose pyramid is already built (excluded),
 //!   at E = 5 and 20 on the sample and E = 20 on the large DEM (output triangles per
@@ -33,6 +34,9 @@ use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::rasterise::mesh_error;
 use wavemesh::mesh::{MeshTarget, Mesher};
 use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
+
+mod support;
+use support::{cpu_seconds_per_call, fnv1a};
 
 /// Side of the synthetic terrain (`2^11 + 1`, diamond–square's natural size).
 const SYNTHETIC_SIDE: usize = 2049;
@@ -118,6 +122,28 @@ fn median_seconds<T>(runs: usize, mut work: impl FnMut() -> T) -> f64 {
     times[runs / 2]
 }
 
+/// Prints the CPU time of `cells_at_plane` + `triangulate` at `plane` (about a
+/// second's worth of calls) as output triangles per second, and fingerprints of the
+/// mesh's triangles and vertices (equal before and after a change that keeps them).
+fn print_extraction_cpu(name: &str, mesher: &Mesher<'_>, plane: u32, triangles: usize) {
+    let extract = || mesher.triangulate(&mesher.cells_at_plane(plane, SplitRule::Zerotree));
+    let mesh = extract();
+    let calls = (100_000_000 / triangles.max(1)).clamp(8, 20_000);
+    let Some(seconds) = cpu_seconds_per_call(calls, || {
+        black_box(extract());
+    }) else {
+        return;
+    };
+    eprintln!(
+        "{name}: plane {plane}: extraction CPU {:.3} ms a call ({calls} calls) = {:.1} M triangles/s; \
+         fingerprints triangles {:016x}, vertices {:016x}",
+        seconds * 1e3,
+        triangles as f64 / seconds / 1e6,
+        fnv1a(mesh.triangles.iter().flatten().map(|&v| u64::from(v))),
+        fnv1a(mesh.vertices.iter().map(|&s| u64::from(s))),
+    );
+}
+
 fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
     let samples = raster.len() as u64;
     let full_triangles = 2 * (raster.width - 1) * (raster.height - 1);
@@ -188,6 +214,7 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
             100.0 * triangles as f64 / full_triangles as f64,
             100.0 * mesh_seconds / decode_seconds
         );
+        print_extraction_cpu(name, &mesher, plane, triangles);
     }
 
     let mut group = c.benchmark_group(format!("mesh {name}"));

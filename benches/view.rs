@@ -38,6 +38,9 @@ use wavemesh::view::morph::{morph, MorphScratch};
 use wavemesh::view::selection::{Rule, ViewTerrain};
 use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
 
+mod support;
+use support::{cpu_seconds_per_call, fnv1a};
+
 const SIDE: usize = 4097;
 
 /// Eight octaves of sine ridges in random directions (amplitude halving, frequency
@@ -97,37 +100,14 @@ fn camera(k: f64) -> View {
         .view()
 }
 
-/// CPU seconds this thread has used (Linux `/proc`, 10 ms ticks); `None` elsewhere.
-fn thread_cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
-    // Fields after the command name: utime and stime are the 12th and 13th, in ticks.
-    let fields: Vec<&str> = stat[stat.rfind(')')? + 2..].split_whitespace().collect();
-    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
-/// Prints the CPU time a call of `f` takes over `calls` calls: on a loaded machine
-/// wall-clock medians count the time other processes hold the core, CPU time does not.
-fn print_cpu_time(label: &str, calls: usize, mut f: impl FnMut()) {
-    let Some(start) = thread_cpu_seconds() else {
-        return;
-    };
-    for _ in 0..calls {
-        f();
-    }
-    if let Some(end) = thread_cpu_seconds() {
+/// Prints the CPU time a call of `f` takes over `calls` calls.
+fn print_cpu_time(label: &str, calls: usize, f: impl FnMut()) {
+    if let Some(seconds) = cpu_seconds_per_call(calls, f) {
         eprintln!(
             "{label}: CPU {:.1} ms a call ({calls} calls)",
-            (end - start) * 1e3 / calls as f64
+            seconds * 1e3
         );
     }
-}
-
-/// FNV-1a over `words`: a fingerprint of a bench's output.
-fn fnv1a(words: impl Iterator<Item = u64>) -> u64 {
-    words.fold(0xcbf2_9ce4_8422_2325, |hash, word| {
-        (hash ^ word).wrapping_mul(0x0000_0100_0000_01b3)
-    })
 }
 
 /// A camera at step `k` of a straight flight: [`camera`]'s motion without the turn.

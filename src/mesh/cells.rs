@@ -189,46 +189,59 @@ impl CellTree {
         self.leaves.clear();
         self.validity = voids.map(|v| v.validity().clone());
         let (rw, rh) = self.nodes(self.levels);
-        let mut stack: Vec<Cell> = Vec::with_capacity(4 * self.levels as usize + 4);
-        for j in (0..rh).rev() {
-            for i in (0..rw).rev() {
-                stack.push(Cell::new(self.levels, i, j));
+        for j in 0..rh {
+            for i in 0..rw {
+                self.descend(self.levels, i, j, voids, &mut test);
             }
         }
-        while let Some(cell) = stack.pop() {
-            let level = cell.level;
-            let (i, j) = cell.position();
-            if level == 0 {
-                if self.is_meshed(cell) {
-                    self.leaves.push(cell);
-                }
-                continue;
-            }
-            let void = voids.is_some_and(|v| v.is_void(level, i, j));
-            let k = self.node_index(level, i, j);
-            let words = &mut self.split[level as usize - 1];
-            if !(words[k / 64] >> (k % 64) & 1 != 0 || void || test(level, i, j)) {
+    }
+
+    /// Visits node `(level, i, j)` (which exists) for [`CellTree::grow`]: a leaf is
+    /// pushed, a split node's children are visited in Z order (depth first).
+    fn descend<F: FnMut(u32, usize, usize) -> bool>(
+        &mut self,
+        level: u32,
+        i: usize,
+        j: usize,
+        voids: Option<&VoidPyramid>,
+        test: &mut F,
+    ) {
+        let cell = Cell::new(level, i, j);
+        if level == 0 {
+            if self.is_meshed(cell) {
                 self.leaves.push(cell);
+            }
+            return;
+        }
+        let void = voids.is_some_and(|v| v.is_void(level, i, j));
+        let k = self.node_index(level, i, j);
+        let words = &mut self.split[level as usize - 1];
+        if !(words[k / 64] >> (k % 64) & 1 != 0 || void || test(level, i, j)) {
+            self.leaves.push(cell);
+            return;
+        }
+        words[k / 64] |= 1 << (k % 64);
+        let (cw, ch) = self.dims[level as usize - 1];
+        let (ci, cj) = (2 * i, 2 * j);
+        let (right, below) = (ci + 1 < cw, cj + 1 < ch);
+        let children = [
+            (ci, cj, true),
+            (ci + 1, cj, right),
+            (ci, cj + 1, below),
+            (ci + 1, cj + 1, right && below),
+        ];
+        for (x, y, exists) in children {
+            if !exists {
                 continue;
             }
-            words[k / 64] |= 1 << (k % 64);
-            let (cw, ch) = self.dims[level as usize - 1];
-            let children = [(0, 0), (1, 0), (0, 1), (1, 1)]
-                .into_iter()
-                .map(|(a, b)| (2 * i + a, 2 * j + b))
-                .filter(|&(ci, cj)| ci < cw && cj < ch);
             if level == 1 {
-                // Grid cells are leaves: no need to go through the stack.
-                for (ci, cj) in children {
-                    let child = Cell::new(0, ci, cj);
-                    if self.is_meshed(child) {
-                        self.leaves.push(child);
-                    }
+                // Grid cells are leaves.
+                let child = Cell::new(0, x, y);
+                if self.is_meshed(child) {
+                    self.leaves.push(child);
                 }
             } else {
-                let start = stack.len();
-                stack.extend(children.map(|(ci, cj)| Cell::new(level - 1, ci, cj)));
-                stack[start..].reverse();
+                self.descend(level - 1, x, y, voids, test);
             }
         }
     }
@@ -442,6 +455,19 @@ impl CellTree {
     #[inline]
     pub fn is_meshed(&self, cell: Cell) -> bool {
         cell.level > 0 || self.valid_corners(cell).count_ones() >= 3
+    }
+
+    /// Whether some side may hold vertices that are no leaf's corner: a fine border is
+    /// set or a midpoint was ever marked.
+    #[inline]
+    pub fn may_have_side_extras(&self) -> bool {
+        self.fine_borders != FineBorders::default() || !self.midpoints.is_empty()
+    }
+
+    /// Whether some sample of the grid is nodata.
+    #[inline]
+    pub fn has_nodata(&self) -> bool {
+        self.validity.is_some()
     }
 
     /// The leaves (grid cells with fewer than three valid corners excluded), depth first.

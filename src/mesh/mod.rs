@@ -4,7 +4,8 @@
 //! Pipeline, one module per stage: [`cells`] (which quadtree nodes split: by the
 //! zerotree at a threshold, by the paper's own-coefficient rule, or by a height tolerance,
 //! with nodata forcing splits) → [`triangulate`] (every cell with the vertices its smaller
-//! neighbours put on its edges) → [`GridMesh`] → [`export`] (glTF binary, OBJ, PLY).
+//! neighbours put on its edges, found first by [`vertex_set`]) → [`GridMesh`] →
+//! [`export`] (glTF binary, OBJ, PLY).
 //! [`rasterise`] puts a mesh back onto the grid to measure it.
 
 pub mod cells;
@@ -17,6 +18,7 @@ pub mod rasterise;
 pub mod tiled;
 pub mod triangulate;
 pub mod varres;
+pub mod vertex_set;
 
 use bitvec::prelude::*;
 use wavemesh_codec::SignificanceMap;

@@ -14,11 +14,15 @@
 //! a vertex on its sides) is the one triangle of its three valid corners, or nothing when
 //! fewer are valid. Its neighbours share the sides whose ends are both valid.
 //!
-//! The cost is proportional to the output: each leaf looks at its four same-level
-//! neighbours' split bits and walks down only into split ones.
+//! [`triangulate`] finds the vertices first ([`super::vertex_set`]: every leaf corner in a
+//! row-major and a column-major bitmap), then writes each leaf's triangles once with their
+//! final vertex numbers, reading a side's hanging vertices from the bitmaps.
+//! [`cell_triangles`] makes one leaf's triangles on its own, walking down the split
+//! neighbours' subtrees for the hanging vertices.
 
 use super::cells::{Cell, CellTree, Side};
 use super::pyramid::{Diagonal, DiagonalPyramid, Heights, Shape};
+use super::vertex_set::{used_samples, CornerMaps, VertexNumbers};
 use super::GridMesh;
 
 /// Reusable buffers for triangulating cell after cell.
@@ -32,7 +36,12 @@ pub struct Scratch {
 }
 
 /// Triangulates every leaf of `tree` in the shape `shape` gives it. Vertices are numbered
-/// in raster order of their samples.
+/// in raster order of their samples, triangles come leaf after leaf in the order of
+/// [`CellTree::leaves`], each leaf's as [`cell_triangles`] makes them.
+///
+/// The vertices are found first ([`super::vertex_set`]), so every triangle is written
+/// once with its final vertex numbers, and a side's hanging vertices are read from a
+/// bitmap.
 ///
 /// # Panics
 /// If the grid has more than `u32::MAX` samples or `heights` is not the tree's grid.
@@ -43,63 +52,178 @@ pub fn triangulate(
 ) -> GridMesh {
     let (width, height) = tree.size();
     assert_eq!((heights.width, heights.height), (width, height));
-    let n = width * height;
     assert!(
-        u32::try_from(n).is_ok(),
+        u32::try_from(width * height).is_ok(),
         "grid too large for 32-bit vertex ids"
     );
-    // Pass 1: triangles over sample indices, marking the samples used in a bitmap (an
-    // eighth of a byte a sample: it stays in cache where a per-sample id table would not).
-    let mut used = vec![0u64; n.div_ceil(64)];
+    let corners = CornerMaps::of(tree, &shape);
+    let numbers = if tree.has_nodata() {
+        VertexNumbers::new(&used_samples(tree, &corners, &shape), width)
+    } else {
+        VertexNumbers::new(&corners.rows, width)
+    };
     // Most cells have two triangles and a few hanging vertices.
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 5 / 2 + 16);
     let mut scratch = Scratch::default();
-    let mut mark_and_push = |t: [u32; 3]| {
-        for s in t {
-            used[s as usize / 64] |= 1 << (s % 64);
-        }
-        triangles.push(t);
-    };
+    let mut push = |t: [u32; 3]| triangles.push(t);
+    let mut block = GridBlock::default();
+    let nodata = tree.has_nodata();
     for &cell in tree.leaves() {
-        if cell.level == 0 {
-            grid_cell_triangles(
-                tree.valid_corners(cell),
-                grid_cell_ring(width, cell),
-                &mut mark_and_push,
-            );
+        if cell.level > 0 {
+            let maps = (&corners, &numbers);
+            leaf_triangles(tree, cell, shape(cell), maps, &mut scratch, &mut push);
+        } else if nodata {
+            let ring = numbered_grid_cell(cell, &numbers);
+            grid_cell_triangles(tree.valid_corners(cell), ring, &mut push);
         } else {
-            cell_triangles(tree, cell, shape(cell), &mut scratch, &mut mark_and_push);
-        }
-    }
-    // Pass 2: a vertex's id is the rank of its sample among the used ones (each word
-    // beside the count of the bits before it: one cache line a look-up).
-    let mut ranked: Vec<(u64, u32)> = Vec::with_capacity(used.len());
-    let mut total = 0u32;
-    for &word in &used {
-        ranked.push((word, total));
-        total += word.count_ones();
-    }
-    let rank = |s: u32| {
-        let (word, before) = ranked[s as usize / 64];
-        before + (word & ((1u64 << (s % 64)) - 1)).count_ones()
-    };
-    for t in &mut triangles {
-        *t = [rank(t[0]), rank(t[1]), rank(t[2])];
-    }
-    let mut vertices = Vec::with_capacity(total as usize);
-    for (w, &word) in used.iter().enumerate() {
-        let mut bits = word;
-        while bits != 0 {
-            vertices.push((w * 64) as u32 + bits.trailing_zeros());
-            bits &= bits - 1;
+            grid_cell_triangles(0b1111, block.corners(cell, &numbers, height), &mut push);
         }
     }
     GridMesh {
         width,
         height,
-        vertices,
+        vertices: numbers.samples(),
         triangles,
     }
+}
+
+/// The vertex numbers of grid cell `cell`'s corners in [`grid_cell_ring`] order (those of
+/// its nodata corners are meaningless).
+#[inline]
+fn numbered_grid_cell(cell: Cell, numbers: &VertexNumbers) -> [u32; 4] {
+    let (x, y) = cell.position();
+    [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)].map(|(x, y)| numbers.number(x, y))
+}
+
+/// The vertex numbers of the grid cells under one split level-1 node when no sample is
+/// nodata: every sample of the node is then a vertex, so the numbers along a row follow
+/// each other and one look-up a row gives them all.
+#[derive(Debug, Default)]
+struct GridBlock {
+    /// The node's top-left sample.
+    origin: Option<(usize, usize)>,
+    /// The number of the node's first sample on each of its rows.
+    rows: [u32; 3],
+}
+
+impl GridBlock {
+    /// The corner numbers of grid cell `cell` in [`grid_cell_ring`] order, on a grid of
+    /// `height` rows.
+    #[inline]
+    fn corners(&mut self, cell: Cell, numbers: &VertexNumbers, height: usize) -> [u32; 4] {
+        let (x, y) = cell.position();
+        let origin = (x & !1, y & !1);
+        if self.origin != Some(origin) {
+            self.origin = Some(origin);
+            for (k, row) in self.rows.iter_mut().enumerate() {
+                if origin.1 + k < height {
+                    *row = numbers.number(origin.0, origin.1 + k);
+                }
+            }
+        }
+        let (dx, dy) = ((x - origin.0) as u32, y - origin.1);
+        let (tl, bl) = (self.rows[dy] + dx, self.rows[dy + 1] + dx);
+        [tl, tl + 1, bl + 1, bl]
+    }
+}
+
+/// Emits the triangles of leaf `cell` (level ≥ 1) in `shape`, numbered by `numbers`, its
+/// hanging vertices read from `corners`.
+#[inline]
+fn leaf_triangles(
+    tree: &CellTree,
+    cell: Cell,
+    shape: Shape,
+    (corners, numbers): (&CornerMaps, &VertexNumbers),
+    scratch: &mut Scratch,
+    emit: &mut impl FnMut([u32; 3]),
+) {
+    let bounds = tree.bounds(cell);
+    let (x0, y0, x1, y1) = bounds;
+    let ring = [
+        numbers.number(x0, y0),
+        numbers.number(x1, y0),
+        numbers.number(x1, y1),
+        numbers.number(x0, y1),
+    ];
+    match shape {
+        Shape::Two(diagonal) if !has_hanging(bounds, ring, corners) => {
+            two_triangles(diagonal, ring, emit);
+        }
+        shape => {
+            let sides = numbered_ring(bounds, ring, corners, numbers, scratch);
+            let centre = match shape {
+                Shape::Fan => numbers.number((x0 + x1) / 2, (y0 + y1) / 2),
+                Shape::Two(_) => 0,
+            };
+            emit_ring(&scratch.ring, sides, shape, centre, emit);
+        }
+    }
+}
+
+/// Whether a leaf with closed sample range `bounds` and corner vertex numbers `ring`
+/// (top-left, top-right, bottom-right, bottom-left) has vertices inside its sides: a
+/// horizontal side has when its corners' numbers do not follow each other.
+#[inline]
+fn has_hanging(
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    [tl, tr, br, bl]: [u32; 4],
+    corners: &CornerMaps,
+) -> bool {
+    tr != tl + 1
+        || br != bl + 1
+        || corners.columns.any_between(x0, y0, y1)
+        || corners.columns.any_between(x1, y0, y1)
+}
+
+/// The two triangles of a leaf without hanging vertices, corners `ring` (top-left,
+/// top-right, bottom-right, bottom-left), as [`cell_triangles`] makes them.
+#[inline]
+fn two_triangles(diagonal: Diagonal, [tl, tr, br, bl]: [u32; 4], emit: &mut impl FnMut([u32; 3])) {
+    match diagonal {
+        Diagonal::Falling => {
+            emit([tl, tr, br]);
+            emit([br, bl, tl]);
+        }
+        Diagonal::Rising => {
+            emit([tr, br, bl]);
+            emit([bl, tl, tr]);
+        }
+    }
+}
+
+/// Fills `scratch.ring` with the vertex numbers of the boundary of the leaf with closed
+/// sample range `bounds` and corner numbers `ring` (top-left, top-right, bottom-right,
+/// bottom-left), in the order [`cell_triangles`] builds its ring, and returns where each
+/// side starts (and the closing corner's slot). The vertices strictly inside a
+/// horizontal side are numbered consecutively between its corners; those of a vertical
+/// side are read from the column bitmap.
+#[inline]
+fn numbered_ring(
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    [tl, tr, br, bl]: [u32; 4],
+    corners: &CornerMaps,
+    numbers: &VertexNumbers,
+    scratch: &mut Scratch,
+) -> [usize; 5] {
+    let (ring, points) = (&mut scratch.ring, &mut scratch.points);
+    ring.clear();
+    ring.extend(tl..tr);
+    let right = ring.len();
+    ring.push(tr);
+    points.clear();
+    corners.columns.ones_between(x1, y0, y1, points);
+    ring.extend(points.iter().map(|&y| numbers.number(x1, y)));
+    let bottom = ring.len();
+    ring.extend((bl + 1..=br).rev());
+    let left = ring.len();
+    ring.push(bl);
+    points.clear();
+    corners.columns.ones_between(x0, y0, y1, points);
+    ring.extend(points.iter().rev().map(|&y| numbers.number(x0, y)));
+    let end = ring.len();
+    ring.push(tl);
+    [0, right, bottom, left, end]
 }
 
 /// The two-triangle shape with the diagonal [`Heights::diagonal`] picks (read from
@@ -163,11 +287,25 @@ pub fn cell_triangles(
     }
     corners[4] = ring.len();
     ring.push(tl);
-    let hanging = corners[4] - 4;
-    let side = |s: usize| &ring[corners[s]..=corners[s + 1]];
+    let centre = sample((x0 + x1) / 2, (y0 + y1) / 2);
+    emit_ring(ring, corners, shape, centre, emit);
+    corners[4] - 4
+}
+
+/// Emits the triangles of a leaf with boundary `ring` (counter-clockwise from the
+/// top-left corner, which closes it again; side `s` runs from `ring[sides[s]]` to
+/// `ring[sides[s + 1]]`) in `shape`; `centre` is the fan's centre vertex.
+#[inline]
+fn emit_ring(
+    ring: &[u32],
+    sides: [usize; 5],
+    shape: Shape,
+    centre: u32,
+    emit: &mut impl FnMut([u32; 3]),
+) {
+    let side = |s: usize| &ring[sides[s]..=sides[s + 1]];
     match shape {
         Shape::Fan => {
-            let centre = sample((x0 + x1) / 2, (y0 + y1) / 2);
             for pair in ring.windows(2) {
                 emit([pair[0], pair[1], centre]);
             }
@@ -181,7 +319,6 @@ pub fn cell_triangles(
             fan_half(side(3), side(0), emit);
         }
     }
-    hanging
 }
 
 /// The corner samples of grid cell `cell` (level 0) on a grid `width` samples wide:
@@ -285,6 +422,122 @@ fn collect_side(
                 Side::Top | Side::Bottom => x1,
                 Side::Left | Side::Right => y1,
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use bitvec::prelude::*;
+
+    use super::*;
+    use crate::mesh::cells::Across;
+    use crate::mesh::pyramid::VoidPyramid;
+    use crate::mesh::FineBorders;
+
+    /// The triangulation leaf by leaf: each leaf's triangles from [`cell_triangles`] over
+    /// sample indices, then every sample numbered by its rank among the used ones. What
+    /// [`triangulate`] must equal, triangle for triangle.
+    fn by_cells(tree: &CellTree, shape: impl Fn(Cell) -> Shape) -> GridMesh {
+        let (width, height) = tree.size();
+        let mut triangles = Vec::new();
+        let mut scratch = Scratch::default();
+        for &cell in tree.leaves() {
+            cell_triangles(tree, cell, shape(cell), &mut scratch, &mut |t| {
+                triangles.push(t)
+            });
+        }
+        let mut vertices: Vec<u32> = triangles.iter().flatten().copied().collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        for t in &mut triangles {
+            *t = t.map(|s| vertices.binary_search(&s).expect("a vertex") as u32);
+        }
+        GridMesh {
+            width,
+            height,
+            vertices,
+            triangles,
+        }
+    }
+
+    /// A random partition of a `w × h` grid (nodata where `void_share` says), with
+    /// random fine borders, fans and marked midpoints, and the shape of every leaf.
+    fn random_case(
+        w: usize,
+        h: usize,
+        levels: u32,
+        void_share: u64,
+        seed: u64,
+    ) -> (CellTree, Vec<(Cell, Shape)>) {
+        let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let valid: BitVec<u64, Lsb0> = (0..w * h).map(|_| random() % 100 >= void_share).collect();
+        let voids = VoidPyramid::new(w, h, levels, &valid);
+        let split_share = random() % 60 + 20;
+        let mut tree = CellTree::build(w, h, levels, voids.as_ref(), |_, _, _| {
+            random() % 100 < split_share
+        });
+        let bits = random();
+        tree.set_fine_borders(FineBorders {
+            top: bits & 1 != 0,
+            right: bits & 2 != 0,
+            bottom: bits & 4 != 0,
+            left: bits & 8 != 0,
+        });
+        let mut shapes = Vec::new();
+        for &cell in tree.clone().leaves() {
+            let (x0, y0, x1, y1) = tree.bounds(cell);
+            let shape = match random() % 3 {
+                0 if cell.level > 0 && x1 - x0 >= 2 && y1 - y0 >= 2 => Shape::Fan,
+                1 => Shape::Two(Diagonal::Rising),
+                _ => Shape::Two(Diagonal::Falling),
+            };
+            if shape == Shape::Fan {
+                for side in Side::ALL {
+                    let open = matches!(tree.across(cell, side), Across::Border | Across::Leaf);
+                    if open && random() % 2 == 0 {
+                        tree.mark_midpoint(cell, side);
+                    }
+                }
+            }
+            shapes.push((cell, shape));
+        }
+        shapes.sort_unstable_by_key(|&(cell, _)| cell);
+        (tree, shapes)
+    }
+
+    #[test]
+    fn triangulate_equals_the_leaf_by_leaf_triangulation() {
+        let sizes = [
+            (9, 9, 3),
+            (10, 7, 2),
+            (2, 2, 0),
+            (33, 5, 4),
+            (1, 5, 1),
+            (130, 70, 6),
+        ];
+        for (case, &(w, h, levels)) in sizes.iter().cycle().take(120).enumerate() {
+            let void_share = [0, 0, 5, 30][case % 4];
+            let (tree, shapes) = random_case(w, h, levels, void_share, case as u64);
+            let shape = |cell: Cell| {
+                let k = shapes.binary_search_by(|(c, _)| c.cmp(&cell));
+                shapes[k.expect("every leaf has a shape")].1
+            };
+            let heights = vec![0.0; w * h];
+            let heights = Heights {
+                width: w,
+                height: h,
+                values: &heights,
+            };
+            let fast = triangulate(&tree, heights, shape);
+            assert!(!fast.triangles.is_empty() || void_share > 0 || w < 2 || h < 2);
+            assert_eq!(fast, by_cells(&tree, shape), "case {case}: {w}x{h}");
         }
     }
 }
