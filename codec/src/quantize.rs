@@ -13,7 +13,9 @@
 //!   `q = round(v / step)`, checked sample by sample.
 //!
 //! Nodata samples are filled before the transform with a smooth continuation of their
-//! surroundings ([`fill_voids`]) so they cost almost nothing; the mask restores them.
+//! surroundings ([`fill_voids`]), so the coefficients near valid samples stay small, and
+//! after the transform the coefficients that reach no valid sample are zeroed
+//! ([`crate::wavelet::zero_unreached`]): voids cost almost nothing; the mask restores them.
 
 use crate::error::CodecError;
 use crate::raster::Raster;

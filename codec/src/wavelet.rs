@@ -32,6 +32,10 @@
 //! de-interleaved) into a scratch buffer where each lifting step is one flat, vectorisable
 //! loop over all lanes, then scattered back. Scratch memory is allocated once per call.
 
+mod support;
+
+pub(crate) use support::zero_unreached;
+
 /// Which wavelet a stream uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Wavelet {

@@ -141,6 +141,50 @@ fn float_lossless_on_and_off_grid_with_nan_voids() {
     }
 }
 
+/// A void costs about its mask and no coefficients: a raster whose right half is NaN
+/// codes losslessly in at most 5 % more than its valid left half alone (3.6 %; 7.3 % when
+/// the fill was coded), and decodes exactly.
+#[test]
+fn a_large_void_costs_about_nothing_but_its_mask() {
+    let (width, height) = (128, 96);
+    let terrain = terrain(
+        width,
+        height,
+        SampleType::F32,
+        7,
+        amplitude(SampleType::F32),
+    );
+    let left: Vec<f32> = (0..width / 2 * height)
+        .map(|i| {
+            terrain
+                .samples
+                .get_f64((i / (width / 2)) * width + i % (width / 2)) as f32
+        })
+        .collect();
+    let half_void: Vec<f32> = (0..width * height)
+        .map(|i| {
+            if i % width < width / 2 {
+                terrain.samples.get_f64(i) as f32
+            } else {
+                f32::NAN
+            }
+        })
+        .collect();
+    let options = EncodeOptions::new(Quality::Lossless, None);
+    let left = Raster::new(width / 2, height, Samples::F32(left)).unwrap();
+    let half_void = Raster::new(width, height, Samples::F32(half_void)).unwrap();
+    let alone = encode(&left, &options).unwrap().bytes.len();
+    let with_void = encode(&half_void, &options).unwrap().bytes.len();
+    assert!(
+        with_void as f64 <= alone as f64 * 1.05,
+        "half void {with_void} bytes, its valid half alone {alone}"
+    );
+    let decoded = roundtrip(&half_void, &options);
+    for i in (0..width * height).filter(|&i| half_void.is_valid(i)) {
+        assert_eq!(decoded.samples.get_f64(i), half_void.samples.get_f64(i));
+    }
+}
+
 #[test]
 fn float_precision_bound() {
     let values: Vec<f32> = (0..64 * 64)

@@ -7,7 +7,7 @@ use crate::error::CodecError;
 use crate::ezw::{Midpoint, MAX_COEFFICIENT_PLANE};
 use crate::pipeline::Quality;
 use crate::raster::{Raster, Samples};
-use crate::wavelet::{self, Subband};
+use crate::wavelet::{self, Subband, Wavelet};
 
 use super::{
     default_float_step, detect_float_grid, fill_voids, float_plane, integer_plane, valid_range,
@@ -62,6 +62,9 @@ pub(crate) fn prepare_53(
     }
     let levels = level_count(norms.len());
     wavelet::forward_53(&mut values, width, height, levels);
+    if mask.iter().any(|&m| !m) {
+        wavelet::zero_unreached(&mut values, width, height, levels, Wavelet::Int53, mask);
+    }
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
     let shifts = wavelet::plane_shifts(norms);
     let step2 = mapping.step * mapping.step;
@@ -136,6 +139,9 @@ pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepa
     let (mean, mut data) = centred_samples(raster, mask);
     let levels = level_count(norms.len());
     wavelet::forward_97(&mut data, width, height, levels);
+    if mask.iter().any(|&m| !m) {
+        wavelet::zero_unreached(&mut data, width, height, levels, Wavelet::Cdf97, mask);
+    }
     // Scale every subband by its norm so one quantiser step means the same pixel error
     // everywhere, then quantise finely enough that the cut, not the quantiser, limits
     // the quality: the largest scaled coefficient gets 30 bits.
