@@ -27,13 +27,18 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{
+    criterion_group, criterion_main, BenchmarkGroup, Criterion, SamplingMode, Throughput,
+};
 use wavemesh::dem::{read_dem, ReadOptions};
 use wavemesh::lod::Surface;
 use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::rasterise::mesh_error;
 use wavemesh::mesh::{MeshTarget, Mesher};
-use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
+use wavemesh_codec::{
+    decode, encode, DecodeOptions, Decoded, EncodeOptions, Encoded, Quality, Raster, Samples,
+};
 
 mod support;
 use support::{cpu_seconds_per_call, fnv1a};
@@ -144,39 +149,66 @@ fn print_extraction_cpu(name: &str, mesher: &Mesher<'_>, plane: u32, triangles: 
     );
 }
 
-fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
-    let samples = raster.len() as u64;
-    let full_triangles = 2 * (raster.width - 1) * (raster.height - 1);
-    let start = Instant::now();
-    let encoded = encode(
-        raster,
-        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
-    )
-    .expect("encode");
-    let encode_seconds = start.elapsed().as_secs_f64();
-    let with_map = DecodeOptions::default().with_significance_map(true);
-    let decoded = decode(&encoded.bytes, &with_map).expect("decode");
-    assert!(decoded.complete, "{name}: complete decode");
-    assert_eq!(&decoded.raster, raster, "{name}: lossless round trip");
-    let map = decoded.significance.as_ref().expect("asked for the map");
-    let top = decoded.header.top_plane.map_or(0, u32::from);
-    let surface = Surface::of(&decoded.raster);
-    let mesher = Mesher::new(map, surface.heights(), &surface.valid);
-    let rule = SplitRule::Zerotree;
-    eprintln!(
-        "{name}: {}x{}, lossless {} bytes ({:.3} bpp), top plane {top}, encode {encode_seconds:.3} s",
-        raster.width,
-        raster.height,
-        encoded.bytes.len(),
-        encoded.bytes.len() as f64 * 8.0 / samples as f64,
-    );
+/// The DEM's lossless file, its decode with the significance map, and the mesher on it.
+struct Prepared {
+    encoded: Encoded,
+    with_map: DecodeOptions,
+    decoded: Decoded,
+    surface: Surface,
+}
 
-    // The planes whose meshes first reach 1 %, 10 % and 50 % of the full grid (planes
-    // from the top down, until 50 % or plane 0).
+impl Prepared {
+    fn of(name: &str, raster: &Raster) -> Prepared {
+        let start = Instant::now();
+        let encoded = encode(
+            raster,
+            &EncodeOptions::new(Quality::Lossless, None).single_stream(),
+        )
+        .expect("encode");
+        let encode_seconds = start.elapsed().as_secs_f64();
+        let with_map = DecodeOptions::default().with_significance_map(true);
+        let decoded = decode(&encoded.bytes, &with_map).expect("decode");
+        assert!(decoded.complete, "{name}: complete decode");
+        assert_eq!(&decoded.raster, raster, "{name}: lossless round trip");
+        let surface = Surface::of(&decoded.raster);
+        eprintln!(
+            "{name}: {}x{}, lossless {} bytes ({:.3} bpp), top plane {}, encode {encode_seconds:.3} s",
+            raster.width,
+            raster.height,
+            encoded.bytes.len(),
+            encoded.bytes.len() as f64 * 8.0 / raster.len() as f64,
+            decoded.header.top_plane.map_or(0, u32::from),
+        );
+        Prepared {
+            encoded,
+            with_map,
+            decoded,
+            surface,
+        }
+    }
+
+    fn mesher(&self) -> Mesher<'_> {
+        let map = self
+            .decoded
+            .significance
+            .as_ref()
+            .expect("asked for the map");
+        Mesher::new(map, self.surface.heights(), &self.surface.valid)
+    }
+}
+
+/// The planes whose meshes first reach 1 %, 10 % and 50 % of the full grid's
+/// `full_triangles` (planes from `top` down, until 50 % or plane 0), with their counts.
+fn planes_to_bench(
+    name: &str,
+    mesher: &Mesher,
+    top: u32,
+    full_triangles: usize,
+) -> Vec<(u32, usize)> {
     let mut counts: Vec<(u32, usize)> = Vec::new();
     for p in (0..=top).rev() {
         let triangles = mesher
-            .triangulate(&mesher.cells_at_plane(p, rule))
+            .triangulate(&mesher.cells_at_plane(p, SplitRule::Zerotree))
             .triangles
             .len();
         counts.push((p, triangles));
@@ -199,14 +231,24 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
         .collect();
     planes.dedup();
     assert!(planes.iter().all(|&(_, t)| t > 0), "{name}: empty meshes");
+    planes
+}
 
-    // The shares printed before criterion runs (medians of a few runs each).
-    let runs = if samples > 1 << 20 { 3 } else { 9 };
-    let decode_seconds = median_seconds(runs, || decode(&encoded.bytes, &with_map));
+/// The shares printed before criterion runs (medians of a few runs each): each plane's
+/// mesh against the full decode, and its extraction's CPU time.
+fn print_shares(name: &str, prepared: &Prepared, planes: &[(u32, usize)], full_triangles: usize) {
+    let mesher = prepared.mesher();
+    let runs = if prepared.decoded.raster.len() > 1 << 20 {
+        3
+    } else {
+        9
+    };
+    let decode_seconds =
+        median_seconds(runs, || decode(&prepared.encoded.bytes, &prepared.with_map));
     eprintln!("{name}: full decode with the map = {decode_seconds:.4} s (median of {runs})");
-    for &(plane, triangles) in &planes {
+    for &(plane, triangles) in planes {
         let mesh_seconds = median_seconds(runs, || {
-            mesher.triangulate(&mesher.cells_at_plane(plane, rule))
+            mesher.triangulate(&mesher.cells_at_plane(plane, SplitRule::Zerotree))
         });
         eprintln!(
             "{name}: plane {plane} ({triangles} triangles, {:.2} % of the grid's): \
@@ -216,29 +258,15 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
         );
         print_extraction_cpu(name, &mesher, plane, triangles);
     }
+}
 
-    let mut group = c.benchmark_group(format!("mesh {name}"));
-    group.sampling_mode(SamplingMode::Flat);
-
-    // (a) The full decode with the significance map.
-    group.throughput(Throughput::Elements(samples));
-    group.bench_function("decode lossless + map", |b| {
-        b.iter(|| black_box(decode(black_box(&encoded.bytes), &with_map)))
-    });
-
-    // (b, c) Cells and triangles from the stored map.
-    for &(plane, triangles) in &planes {
-        group.throughput(Throughput::Elements(triangles as u64));
-        group.bench_function(format!("mesh plane {plane} ({triangles} tri)"), |b| {
-            b.iter(|| {
-                let tree = mesher.cells_at_plane(black_box(plane), rule);
-                black_box(mesher.triangulate(&tree))
-            })
-        });
-    }
-
-    // (d) Tolerance meshes, with and without building the error pyramid.
-    let mut warm = Mesher::new(map, surface.heights(), &surface.valid);
+/// (d) Tolerance meshes, with and without building the error pyramid.
+fn bench_tolerances(group: &mut BenchmarkGroup<'_, WallTime>, name: &str, prepared: &Prepared) {
+    let surface = &prepared.surface;
+    let samples = surface.heights.len() as u64;
+    let full_triangles = 2 * (surface.width - 1) * (surface.height - 1);
+    let rule = SplitRule::Zerotree;
+    let mut warm = prepared.mesher();
     let start = Instant::now();
     warm.error_pyramid();
     eprintln!(
@@ -252,7 +280,7 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
         group.throughput(Throughput::Elements(samples));
         group.bench_function("error pyramid", |b| {
             b.iter(|| {
-                let mut fresh = Mesher::new(map, surface.heights(), &surface.valid);
+                let mut fresh = prepared.mesher();
                 fresh.error_pyramid();
                 black_box(fresh)
             })
@@ -284,7 +312,7 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
         group.throughput(Throughput::Elements(triangles as u64));
         group.bench_function(format!("tolerance {tolerance} with pyramid"), |b| {
             b.iter(|| {
-                let mut fresh = Mesher::new(map, surface.heights(), &surface.valid);
+                let mut fresh = prepared.mesher();
                 black_box(fresh.build(MeshTarget::Tolerance(tolerance), rule, None))
             })
         });
@@ -292,6 +320,39 @@ fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
             b.iter(|| black_box(warm.build(MeshTarget::Tolerance(tolerance), rule, None)))
         });
     }
+}
+
+fn bench_dem(c: &mut Criterion, name: &str, raster: &Raster) {
+    let full_triangles = 2 * (raster.width - 1) * (raster.height - 1);
+    let prepared = Prepared::of(name, raster);
+    let mesher = prepared.mesher();
+    let top = prepared.decoded.header.top_plane.map_or(0, u32::from);
+    let planes = planes_to_bench(name, &mesher, top, full_triangles);
+    print_shares(name, &prepared, &planes, full_triangles);
+
+    let mut group = c.benchmark_group(format!("mesh {name}"));
+    group.sampling_mode(SamplingMode::Flat);
+    // (a) The full decode with the significance map.
+    group.throughput(Throughput::Elements(raster.len() as u64));
+    group.bench_function("decode lossless + map", |b| {
+        b.iter(|| {
+            black_box(decode(
+                black_box(&prepared.encoded.bytes),
+                &prepared.with_map,
+            ))
+        })
+    });
+    // (b, c) Cells and triangles from the stored map.
+    for &(plane, triangles) in &planes {
+        group.throughput(Throughput::Elements(triangles as u64));
+        group.bench_function(format!("mesh plane {plane} ({triangles} tri)"), |b| {
+            b.iter(|| {
+                let tree = mesher.cells_at_plane(black_box(plane), SplitRule::Zerotree);
+                black_box(mesher.triangulate(&tree))
+            })
+        });
+    }
+    bench_tolerances(&mut group, name, &prepared);
     group.finish();
 }
 
