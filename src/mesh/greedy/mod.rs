@@ -25,7 +25,7 @@ use bitvec::prelude::*;
 
 use super::GridMesh;
 use queue::WorstFirst;
-use scan::{assess, Assessment, Grid, Height};
+use scan::{assess, assess_unless_valid, Assessment, Grid, Height};
 use triangulation::{in_circle, orient, Triangulation, NONE};
 
 /// When insertion stops.
@@ -65,6 +65,9 @@ pub struct GreedyMesher<'a, H: Height = f64> {
     queue: WorstFirst,
     /// Triangles rewritten by the current insertion (to assess again).
     touched: Vec<u32>,
+    /// Triangles covering no nodata whose heights are not read yet (error NaN): read
+    /// when the worst triangle no longer covers nodata (see [`assess_unless_valid`]).
+    unread: Vec<u32>,
     /// Half-edges waiting for the empty-circle test (kept to reuse its memory).
     to_legalise: Vec<u32>,
     /// Triangles with at most this error are never split, so never queued.
@@ -96,6 +99,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             assessments: Vec::new(),
             queue: WorstFirst::default(),
             touched: vec![0, 1],
+            unread: Vec::new(),
             to_legalise: Vec::new(),
             settled: 0.0,
             resolving_flips: false,
@@ -125,13 +129,31 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         }
     }
 
-    /// Inserts vertices until `target` is met (or nothing is left to insert).
+    /// Inserts vertices until `target` is met (or nothing is left to insert); every
+    /// triangle is assessed when it returns.
     pub fn run(&mut self, target: GreedyTarget) {
         if let GreedyTarget::MaxError(e) = target {
             // Queued triangles within the tolerance stay; new ones are not queued.
             self.settled = self.settled.max(e);
         }
-        while let Some(worst) = self.queue.worst() {
+        self.insert_until(target);
+        self.assess_unread();
+    }
+
+    /// [`GreedyMesher::run`]'s insertions. Triangles not read yet ([`GreedyMesher::unread`])
+    /// are read as soon as the worst triangle is not one over nodata: the same triangles
+    /// are split in the same order as if every one had been read when made.
+    fn insert_until(&mut self, target: GreedyTarget) {
+        loop {
+            let worst = self.queue.worst();
+            let over_nodata = |t: u32| self.assessments[t as usize].error == f64::INFINITY;
+            if !self.unread.is_empty() && !worst.is_some_and(over_nodata) {
+                self.assess_unread();
+                continue;
+            }
+            let Some(worst) = worst else {
+                return;
+            };
             let error = self.assessments[worst as usize].error;
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
@@ -274,7 +296,23 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         }
     }
 
-    /// Assesses every touched triangle again and queues it.
+    /// Reads and queues the triangles whose reading waited ([`GreedyMesher::unread`]).
+    fn assess_unread(&mut self) {
+        let mut unread = std::mem::take(&mut self.unread);
+        for &t in &unread {
+            // Rewritten and assessed since, when not NaN.
+            if self.assessments[t as usize].error.is_nan() {
+                let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
+                self.store(t, assessment);
+            }
+        }
+        unread.clear();
+        self.unread = unread;
+    }
+
+    /// Assesses every touched triangle again and queues it; a large one covering no
+    /// nodata on a grid with nodata waits in [`GreedyMesher::unread`] (NaN error, not
+    /// queued).
     fn assess_touched(&mut self) {
         let mut touched = std::mem::take(&mut self.touched);
         touched.sort_unstable();
@@ -288,13 +326,25 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             },
         );
         for &t in &touched {
-            let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
+            let assessment = assess_unless_valid(&self.grid, self.tin.triangle_vertices(t))
+                .unwrap_or_else(|| {
+                    self.unread.push(t);
+                    UNREAD
+                });
             self.store(t, assessment);
         }
         touched.clear();
         self.touched = touched;
     }
 }
+
+/// The assessment of a triangle covering no nodata whose heights are not read yet
+/// (never queued: its NaN error is over no tolerance).
+const UNREAD: Assessment = Assessment {
+    error: f64::NAN,
+    candidate: u32::MAX,
+    touches_void: false,
+};
 
 /// Checks that `grid` can be meshed: two samples a side at least, as many heights and
 /// validity flags as samples, every valid height finite.
