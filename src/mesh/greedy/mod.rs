@@ -588,6 +588,46 @@ mod tests {
     }
 
     #[test]
+    fn covering_flips_cover_vertices_stranded_among_voids() {
+        let (w, h) = (90, 70);
+        let heights = terrain(w, h);
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        let mut state = 12345u64;
+        for s in 0..w * h {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            if (state >> 33) % 10 < 3 {
+                valid.set(s, false);
+            }
+        }
+        let grid = Grid::new(w, h, &heights, valid.as_raw_slice());
+        let build = |cover: bool| {
+            let mut mesher = GreedyMesher::new(grid).unwrap().with_resolving_flips();
+            mesher.run(GreedyTarget::MaxError(1.0));
+            if cover {
+                mesher.covering_flips(1.0);
+            }
+            let mesh = mesher.mesh();
+            let (_, covered) = crate::mesh::rasterise::rasterise(&mesh, &heights);
+            assert!((0..w * h).all(|s| valid[s] || !covered[s]), "nodata meshed");
+            for t in &mesh.triangles {
+                let p = t.map(|v| {
+                    let (x, y) = mesh.vertex_position(v);
+                    (x as i64, y as i64)
+                });
+                assert!(orient(p[0], p[1], p[2]) > 0, "a triangle is flipped");
+            }
+            let error = mesh_error(&mesh, &heights, &heights, &valid);
+            assert!(error.max_error <= 1.0);
+            error.uncovered_samples
+        };
+        let (without, with) = (build(false), build(true));
+        eprintln!("uncovered {without} -> {with}");
+        assert!(with < without, "{with} against {without}");
+    }
+
+    #[test]
     fn a_budget_around_nodata_counts_the_mesh_triangles_only() {
         let (w, h) = (90, 70);
         let heights = terrain(w, h);
