@@ -97,11 +97,8 @@ impl<'a, H: Height> Grid<'a, H> {
 
     /// Whether a sample among the eight around sample `s` is nodata.
     pub fn next_to_nodata(&self, s: usize) -> bool {
-        let (x, y) = (s % self.width, s / self.width);
-        let rows = y.saturating_sub(1)..=(y + 1).min(self.height - 1);
-        let columns = x.saturating_sub(1)..=(x + 1).min(self.width - 1);
-        rows.flat_map(|y| columns.clone().map(move |x| y * self.width + x))
-            .any(|n| !self.is_valid(n))
+        let (x, y) = ((s % self.width) as i64, (s / self.width) as i64);
+        self.nodata_around(y, x, x)
     }
 
     /// Whether sample `s` is valid.
