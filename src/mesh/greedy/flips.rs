@@ -5,7 +5,7 @@
 //! row that rules it out, and an edge whose two triangles did not change since it was
 //! last weighed is not weighed again.
 
-use super::scan::{assess_within, error_at, errors, errors_within, Height};
+use super::scan::{assess, assess_within, error_at, errors, errors_within, Height};
 use super::triangulation::{orient, Vertex, NONE};
 use super::{GreedyMesher, GridMesh};
 
@@ -83,6 +83,9 @@ impl<H: Height> GreedyMesher<'_, H> {
     /// triangles are not assessed again (they cover no nodata, as the quadrilaterals
     /// they come from), so this ends the insertion.
     pub fn optimise_flips(mut self, limit: Option<f64>, passes: usize) -> (GridMesh, usize) {
+        if let Some(tolerance) = limit {
+            self.covering_flips(tolerance);
+        }
         let triangles = self.triangle_count();
         let mut state = FlipState {
             errors: vec![(f64::NAN, 0.0); triangles],
@@ -103,6 +106,77 @@ impl<H: Height> GreedyMesher<'_, H> {
             }
         }
         (self.mesh(), flips)
+    }
+
+    /// Flips edges between two triangles left out over nodata when a triangle the flip
+    /// makes covers no nodata, has a corner no triangle of the mesh covers yet, and both
+    /// are within `tolerance`, until no such flip is left: a valid vertex whose every
+    /// triangle held nodata gets covered (by a triangle of valid corners across the
+    /// chord of two of its neighbours). Returns the flips made. Each flip covers a
+    /// vertex, so the passes end.
+    pub(super) fn covering_flips(&mut self, tolerance: f64) -> usize {
+        // Triangles of the mesh at each vertex, and the triangles left out.
+        let mut covering = vec![0u32; self.tin.points.len()];
+        let mut left_out = Vec::new();
+        for t in 0..self.triangle_count() as u32 {
+            match self.assessments[t as usize].touches_void {
+                true => left_out.push(t),
+                false => self
+                    .tin
+                    .triangle(t)
+                    .iter()
+                    .for_each(|&v| covering[v as usize] += 1),
+            }
+        }
+        let mut flips = 0;
+        loop {
+            let before = flips;
+            for e in left_out.iter().flat_map(|&t| 3 * t..3 * t + 3) {
+                flips += usize::from(self.try_covering_flip(e, tolerance, &mut covering));
+            }
+            if flips == before {
+                return flips;
+            }
+        }
+    }
+
+    /// Flips the edge of `e` when [`GreedyMesher::covering_flips`] would (`covering`:
+    /// the triangles of the mesh at each vertex, kept up to date).
+    fn try_covering_flip(&mut self, e: u32, tolerance: f64, covering: &mut [u32]) -> bool {
+        let f = self.tin.twins[e as usize];
+        if f == NONE || f < e {
+            return false;
+        }
+        let left_out = |t: u32| self.assessments[t as usize].touches_void;
+        if !left_out(e / 3) || !left_out(f / 3) {
+            return false;
+        }
+        let Some([a, b, c, d]) = self.tin.quad(e) else {
+            return false;
+        };
+        let point = |v: u32| self.tin.points[v as usize];
+        if orient(point(c).point(), point(a).point(), point(d).point()) <= 0
+            || orient(point(d).point(), point(b).point(), point(c).point()) <= 0
+        {
+            return false;
+        }
+        let (first, second) = ([c, a, d], [d, b, c]);
+        let made = [first, second].map(|t| assess(&self.grid, t.map(point)));
+        let strands = |t: [u32; 3]| t.iter().any(|&v| covering[v as usize] == 0);
+        let covers = |k: usize, t| !made[k].touches_void && strands(t);
+        let within = made.iter().all(|m| m.error <= tolerance);
+        if !within || !(covers(0, first) || covers(1, second)) {
+            return false;
+        }
+        self.tin.flip(e);
+        for (k, t) in [first, second].into_iter().enumerate() {
+            if !made[k].touches_void {
+                t.iter().for_each(|&v| covering[v as usize] += 1);
+            }
+        }
+        self.store(e / 3, made[0]);
+        self.store(f / 3, made[1]);
+        true
     }
 
     /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would.

@@ -25,7 +25,7 @@ use bitvec::prelude::*;
 
 use super::GridMesh;
 use queue::WorstFirst;
-use scan::{assess, Assessment, Grid, Height};
+use scan::{assess, assess_unless_valid, Assessment, Grid, Height};
 use triangulation::{in_circle, orient, Triangulation, NONE};
 
 /// When insertion stops.
@@ -65,6 +65,9 @@ pub struct GreedyMesher<'a, H: Height = f64> {
     queue: WorstFirst,
     /// Triangles rewritten by the current insertion (to assess again).
     touched: Vec<u32>,
+    /// Triangles covering no nodata whose heights are not read yet (error NaN): read
+    /// when the worst triangle no longer covers nodata (see [`assess_unless_valid`]).
+    unread: Vec<u32>,
     /// Half-edges waiting for the empty-circle test (kept to reuse its memory).
     to_legalise: Vec<u32>,
     /// Triangles with at most this error are never split, so never queued.
@@ -96,6 +99,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             assessments: Vec::new(),
             queue: WorstFirst::default(),
             touched: vec![0, 1],
+            unread: Vec::new(),
             to_legalise: Vec::new(),
             settled: 0.0,
             resolving_flips: false,
@@ -125,13 +129,31 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         }
     }
 
-    /// Inserts vertices until `target` is met (or nothing is left to insert).
+    /// Inserts vertices until `target` is met (or nothing is left to insert); every
+    /// triangle is assessed when it returns.
     pub fn run(&mut self, target: GreedyTarget) {
         if let GreedyTarget::MaxError(e) = target {
             // Queued triangles within the tolerance stay; new ones are not queued.
             self.settled = self.settled.max(e);
         }
-        while let Some(worst) = self.queue.worst() {
+        self.insert_until(target);
+        self.assess_unread();
+    }
+
+    /// [`GreedyMesher::run`]'s insertions. Triangles not read yet ([`GreedyMesher::unread`])
+    /// are read as soon as the worst triangle is not one over nodata: the same triangles
+    /// are split in the same order as if every one had been read when made.
+    fn insert_until(&mut self, target: GreedyTarget) {
+        loop {
+            let worst = self.queue.worst();
+            let over_nodata = |t: u32| self.assessments[t as usize].error == f64::INFINITY;
+            if !self.unread.is_empty() && !worst.is_some_and(over_nodata) {
+                self.assess_unread();
+                continue;
+            }
+            let Some(worst) = worst else {
+                return;
+            };
             let error = self.assessments[worst as usize].error;
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
@@ -274,7 +296,23 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         }
     }
 
-    /// Assesses every touched triangle again and queues it.
+    /// Reads and queues the triangles whose reading waited ([`GreedyMesher::unread`]).
+    fn assess_unread(&mut self) {
+        let mut unread = std::mem::take(&mut self.unread);
+        for &t in &unread {
+            // Rewritten and assessed since, when not NaN.
+            if self.assessments[t as usize].error.is_nan() {
+                let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
+                self.store(t, assessment);
+            }
+        }
+        unread.clear();
+        self.unread = unread;
+    }
+
+    /// Assesses every touched triangle again and queues it; a large one covering no
+    /// nodata on a grid with nodata waits in [`GreedyMesher::unread`] (NaN error, not
+    /// queued).
     fn assess_touched(&mut self) {
         let mut touched = std::mem::take(&mut self.touched);
         touched.sort_unstable();
@@ -288,13 +326,25 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             },
         );
         for &t in &touched {
-            let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
+            let assessment = assess_unless_valid(&self.grid, self.tin.triangle_vertices(t))
+                .unwrap_or_else(|| {
+                    self.unread.push(t);
+                    UNREAD
+                });
             self.store(t, assessment);
         }
         touched.clear();
         self.touched = touched;
     }
 }
+
+/// The assessment of a triangle covering no nodata whose heights are not read yet
+/// (never queued: its NaN error is over no tolerance).
+const UNREAD: Assessment = Assessment {
+    error: f64::NAN,
+    candidate: u32::MAX,
+    touches_void: false,
+};
 
 /// Checks that `grid` can be meshed: two samples a side at least, as many heights and
 /// validity flags as samples, every valid height finite.
@@ -535,6 +585,46 @@ mod tests {
             assert_eq!(covered[s], valid[s], "sample {s}");
         }
         assert!(mesh_error(&mesh, &heights, &heights, &valid).max_error <= 1.0);
+    }
+
+    #[test]
+    fn covering_flips_cover_vertices_stranded_among_voids() {
+        let (w, h) = (90, 70);
+        let heights = terrain(w, h);
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        let mut state = 12345u64;
+        for s in 0..w * h {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            if (state >> 33) % 10 < 3 {
+                valid.set(s, false);
+            }
+        }
+        let grid = Grid::new(w, h, &heights, valid.as_raw_slice());
+        let build = |cover: bool| {
+            let mut mesher = GreedyMesher::new(grid).unwrap().with_resolving_flips();
+            mesher.run(GreedyTarget::MaxError(1.0));
+            if cover {
+                mesher.covering_flips(1.0);
+            }
+            let mesh = mesher.mesh();
+            let (_, covered) = crate::mesh::rasterise::rasterise(&mesh, &heights);
+            assert!((0..w * h).all(|s| valid[s] || !covered[s]), "nodata meshed");
+            for t in &mesh.triangles {
+                let p = t.map(|v| {
+                    let (x, y) = mesh.vertex_position(v);
+                    (x as i64, y as i64)
+                });
+                assert!(orient(p[0], p[1], p[2]) > 0, "a triangle is flipped");
+            }
+            let error = mesh_error(&mesh, &heights, &heights, &valid);
+            assert!(error.max_error <= 1.0);
+            error.uncovered_samples
+        };
+        let (without, with) = (build(false), build(true));
+        eprintln!("uncovered {without} -> {with}");
+        assert!(with < without, "{with} against {without}");
     }
 
     #[test]

@@ -97,11 +97,8 @@ impl<'a, H: Height> Grid<'a, H> {
 
     /// Whether a sample among the eight around sample `s` is nodata.
     pub fn next_to_nodata(&self, s: usize) -> bool {
-        let (x, y) = (s % self.width, s / self.width);
-        let rows = y.saturating_sub(1)..=(y + 1).min(self.height - 1);
-        let columns = x.saturating_sub(1)..=(x + 1).min(self.width - 1);
-        rows.flat_map(|y| columns.clone().map(move |x| y * self.width + x))
-            .any(|n| !self.is_valid(n))
+        let (x, y) = ((s % self.width) as i64, (s / self.width) as i64);
+        self.nodata_around(y, x, x)
     }
 
     /// Whether sample `s` is valid.
@@ -492,12 +489,48 @@ pub fn assess<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     assess_within(grid, v, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, v))
 }
 
+/// [`assess`], unless the triangle with corners `v` is large, on a grid with nodata,
+/// and covers none (`None`: its heights need not be read yet). Its validity is read
+/// first, a word of 64 samples at a time: one that meets nodata must split wherever its
+/// error, and one that does not may be rewritten by the splits over nodata before its
+/// error is ever asked for (rectangle-sized triangles over a void's collar at a coarse
+/// tolerance).
+pub fn assess_unless_valid<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Option<Assessment> {
+    let p = v.map(Vertex::point);
+    if grid.no_nodata || twice_area(p) < CHECKED_FIRST {
+        return Some(assess(grid, v));
+    }
+    meets_nodata(grid, p).then(|| assess_with_nodata(grid, v))
+}
+
+/// Triangles at least this large (twice the area, in samples) on a grid with nodata
+/// have their validity read before their heights ([`assess_unless_valid`]).
+const CHECKED_FIRST: i64 = 1024;
+
+/// Twice the area of the counter-clockwise triangle `p`.
+#[inline]
+fn twice_area(p: [(i64, i64); 3]) -> i64 {
+    (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0)
+}
+
+/// Whether the triangle `p` covers a nodata sample (its rows' validity read a word of 64
+/// samples at a time, no height read).
+fn meets_nodata<H: Height>(grid: &Grid<H>, p: [(i64, i64); 3]) -> bool {
+    let mut meets = false;
+    for_each_span(p, |y, lo, hi| {
+        let row = y as usize * grid.width;
+        meets = !grid.all_valid(row + lo as usize, row + hi as usize);
+        !meets
+    });
+    meets
+}
+
 /// Whether no grid sample but its corners lies on or inside the counter-clockwise
 /// triangle `p`: by Pick's theorem (twice the area = 2 · inside + on the outline − 2,
 /// the outline holding the 3 corners at least), exactly when twice its area is 1.
 #[inline]
 fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
-    (p[1].0 - p[0].0) * (p[2].1 - p[0].1) - (p[1].1 - p[0].1) * (p[2].0 - p[0].0) == 1
+    twice_area(p) == 1
 }
 
 /// [`assess`] of a triangle whose samples are all valid and within `limit` of it (read
@@ -922,6 +955,25 @@ mod tests {
             assert!(!g.all_valid(0, w * h - 1));
             assert!(g.all_valid(0, w * h - 2));
         }
+    }
+
+    #[test]
+    fn only_large_triangles_clear_of_nodata_wait_to_be_read() {
+        let (w, h) = (64, 64);
+        let heights = vec![1.0; w * h];
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        valid.set(w * h - 1, false);
+        let g = grid(w, h, &heights, &valid);
+        let clear = corners(&g, [(0, 0), (62, 0), (0, 62)]);
+        assert!(assess_unless_valid(&g, clear).is_none());
+        let over = corners(&g, [(63, 0), (63, 63), (0, 63)]);
+        assert_eq!(assess_unless_valid(&g, over), Some(assess(&g, over)));
+        assert!(assess(&g, over).touches_void);
+        let small = corners(&g, [(0, 0), (8, 0), (0, 8)]);
+        assert_eq!(assess_unless_valid(&g, small), Some(assess(&g, small)));
+        let whole = bitvec![u64, Lsb0; 1; w * h];
+        let g = grid(w, h, &heights, &whole);
+        assert_eq!(assess_unless_valid(&g, clear), Some(assess(&g, clear)));
     }
 
     #[test]
