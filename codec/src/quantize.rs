@@ -24,7 +24,7 @@ mod prepare;
 mod samples;
 mod voids;
 
-pub(crate) use prepare::{prepare_53, prepare_97, Prepared};
+pub(crate) use prepare::{prepare_53, prepare_97, Prepared, VoidCoefficients};
 pub(crate) use samples::{integer_samples, rescale_97, to_samples};
 pub(crate) use voids::fill_voids;
 

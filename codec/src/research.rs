@@ -4,14 +4,15 @@
 use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;
-use crate::quantize::{prepare_53, prepare_97};
+use crate::quantize::{prepare_53, prepare_97, VoidCoefficients};
 use crate::raster::Raster;
 use crate::wavelet::{self, Wavelet};
 
 /// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
 /// (bits) with every context, with each one removed in turn, and with none.
 pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
-    let (layout, coefficients) = complete_coefficients(raster, Wavelet::Int53)?;
+    let (layout, coefficients) =
+        complete_coefficients(raster, Wavelet::Int53, VoidCoefficients::Zeroed)?;
     Ok(context_choices()
         .into_iter()
         .map(|(name, choice)| (name, ezw::count_bits(&layout, &coefficients, choice)))
@@ -22,30 +23,32 @@ pub use crate::ezw::{PriorTally, PRIOR_WINDOW};
 
 /// Adds to `tally` the first decisions of every context model in `raster`'s complete
 /// stream with `wavelet` (lossless 5/3, or 9/7 at its finest step): the training of
-/// coder 3's starting probabilities (see [`PriorTally`]).
+/// coder 3's starting probabilities (see [`PriorTally`]), with the coefficients of voids
+/// as they were when the tables were trained (the transform of the filled voids).
 pub fn tally_priors(
     raster: &Raster,
     wavelet: Wavelet,
     tally: &mut PriorTally,
 ) -> Result<(), CodecError> {
-    let (layout, coefficients) = complete_coefficients(raster, wavelet)?;
+    let (layout, coefficients) = complete_coefficients(raster, wavelet, VoidCoefficients::Filled)?;
     ezw::tally_priors(&layout, &coefficients, tally);
     Ok(())
 }
 
 /// `raster`'s coefficients for a complete stream with `wavelet` (lossless 5/3, or 9/7 at
-/// its finest step) at the default levels, and their layout.
+/// its finest step) at the default levels, `voids` as asked, and their layout.
 fn complete_coefficients(
     raster: &Raster,
     wavelet: Wavelet,
+    voids: VoidCoefficients,
 ) -> Result<(CoefficientLayout, Vec<i32>), CodecError> {
     let (width, height) = (raster.width, raster.height);
     let levels = wavelet::default_levels(width, height);
     let norms = wavelet::coding_norms(wavelet, width, height, levels);
     let mask = raster.valid_mask();
     let prepared = match wavelet {
-        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms)?,
-        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms),
+        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms, voids)?,
+        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, voids),
     };
     let subbands = wavelet::subbands(width, height, levels);
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);

@@ -7,7 +7,7 @@ use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, EncodedPayload};
 use crate::mask::encode_mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{self, prepare_53, prepare_97, Prepared};
+use crate::quantize::{self, prepare_53, prepare_97, Prepared, VoidCoefficients};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::encode_residuals;
 use crate::tiles::TileGrid;
@@ -117,14 +117,20 @@ fn prepare(
         quantize::check_finite(values, mask, raster.width)?;
     }
     match options.wavelet {
-        Wavelet::Int53 => prepare_53(raster, mask, options.quality, norms),
+        Wavelet::Int53 => prepare_53(
+            raster,
+            mask,
+            options.quality,
+            norms,
+            VoidCoefficients::Zeroed,
+        ),
         Wavelet::Cdf97 => {
             if options.quality != Quality::Lossless {
                 return Err(CodecError::InvalidParameters(
                     "the 9/7 wavelet is lossy: error bounds need the 5/3 wavelet".into(),
                 ));
             }
-            let prepared = prepare_97(raster, mask, norms);
+            let prepared = prepare_97(raster, mask, norms, VoidCoefficients::Zeroed);
             // Infinities, or finite samples whose transform overflows f32, leave no finite
             // mean or step for the header (the decoder would refuse the stream).
             if !(prepared.mapping.offset.is_finite() && prepared.coefficient_step.is_finite()) {

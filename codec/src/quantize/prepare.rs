@@ -38,6 +38,16 @@ pub(crate) struct Prepared {
     pub residuals: Vec<i32>,
 }
 
+/// What the coefficients that reach no valid sample hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum VoidCoefficients {
+    /// Zeroed ([`wavelet::zero_unreached`]): what the encoder codes.
+    Zeroed,
+    /// The transform of the filled voids: what coder 3's prior tables were trained on
+    /// (they are part of the format, so their training stays as it was).
+    Filled,
+}
+
 /// The 5/3 path: samples to the integer plane `quality` asks for, voids filled,
 /// transformed.
 pub(crate) fn prepare_53(
@@ -45,6 +55,7 @@ pub(crate) fn prepare_53(
     mask: &[bool],
     quality: Quality,
     norms: &[f64],
+    voids: VoidCoefficients,
 ) -> Result<Prepared, CodecError> {
     let (width, height) = (raster.width, raster.height);
     let (plane, mode, max_error) = integer_plane_for(raster, mask, quality)?;
@@ -62,7 +73,7 @@ pub(crate) fn prepare_53(
     }
     let levels = level_count(norms.len());
     wavelet::forward_53(&mut values, width, height, levels);
-    if mask.iter().any(|&m| !m) {
+    if voids == VoidCoefficients::Zeroed && mask.iter().any(|&m| !m) {
         wavelet::zero_unreached(&mut values, width, height, levels, Wavelet::Int53, mask);
     }
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
@@ -134,12 +145,17 @@ fn integer_plane_for(
 
 /// The 9/7 path: samples centred on their mean, voids filled, transformed, and the
 /// coefficients scaled by their subband's norm and quantised on one step.
-pub(crate) fn prepare_97(raster: &Raster, mask: &[bool], norms: &[f64]) -> Prepared {
+pub(crate) fn prepare_97(
+    raster: &Raster,
+    mask: &[bool],
+    norms: &[f64],
+    voids: VoidCoefficients,
+) -> Prepared {
     let (width, height) = (raster.width, raster.height);
     let (mean, mut data) = centred_samples(raster, mask);
     let levels = level_count(norms.len());
     wavelet::forward_97(&mut data, width, height, levels);
-    if mask.iter().any(|&m| !m) {
+    if voids == VoidCoefficients::Zeroed && mask.iter().any(|&m| !m) {
         wavelet::zero_unreached(&mut data, width, height, levels, Wavelet::Cdf97, mask);
     }
     // Scale every subband by its norm so one quantiser step means the same pixel error

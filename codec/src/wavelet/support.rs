@@ -144,14 +144,14 @@ mod tests {
             let levels = (xorshift(&mut state) % (max_levels(width, height) as u64 + 1)) as u32;
             let (cx, cy) = (xorshift(&mut state) % 48, xorshift(&mut state) % 48);
             let radius = 2 + xorshift(&mut state) % 20;
-            let speckle = xorshift(&mut state) % 4 == 0;
+            let speckle = xorshift(&mut state).is_multiple_of(4);
             let valid: Vec<bool> = (0..width * height)
                 .map(|i| {
                     let (x, y) = ((i % width) as i64, (i / width) as i64);
                     let (dx, dy) = (x - cx as i64, y - cy as i64);
                     let outside = (dx * dx + dy * dy) as u64 > radius * radius;
                     if speckle {
-                        outside && xorshift(&mut state) % 3 != 0
+                        outside && !xorshift(&mut state).is_multiple_of(3)
                     } else {
                         outside
                     }
