@@ -190,6 +190,17 @@ fn bench_terrain(c: &mut Criterion, name: &str, raster: Raster) {
     print_cpu_time(&format!("{name} morph"), 8, || {
         black_box(morph(&terrain, &a, rule, &tree, &mesh, &mut scratch));
     });
+    let tree_b = terrain.select(&b, rule);
+    let frames = [
+        (&a, &tree, &mesh),
+        (&b, &tree_b, &terrain.triangulate(&tree_b)),
+    ];
+    let mut flight_scratch = MorphScratch::default();
+    print_cpu_time(&format!("{name} morph, smooth flight"), 24, || {
+        flip = !flip;
+        let (view, tree, mesh) = frames[usize::from(flip)];
+        black_box(morph(&terrain, view, rule, tree, mesh, &mut flight_scratch));
+    });
     print_cpu_time(&format!("{name} triangulate"), 8, || {
         black_box(terrain.triangulate(&tree));
     });

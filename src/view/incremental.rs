@@ -148,7 +148,7 @@ const SAFETY: f64 = 0.999;
 
 /// The accumulated motion `slack` after `travelled` (slightly early, by [`SAFETY`]).
 #[inline]
-fn after(travelled: f64, slack: f64) -> f64 {
+pub(super) fn after(travelled: f64, slack: f64) -> f64 {
     travelled + slack.max(0.0) * SAFETY
 }
 
@@ -448,15 +448,26 @@ impl Incremental {
         if terrain.is_void(cell.level, i, j) {
             return f64::INFINITY;
         }
-        if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return 0.0;
-        }
-        let general = split_holds(node, node.frustum, 1.0 / node.margin);
-        if node.clearance > 0.0 {
-            general.max(split_holds(node, 1.0, 0.0).min(node.clearance))
-        } else {
-            general
-        }
+        stays_above(self.rule, node, 1.0)
+    }
+}
+
+/// How far the camera may move (in [`camera_motion`]'s measure) before node `node`, whose
+/// ratio is above `level`, could fall to `level` (0 under the area rule, which has no
+/// bound): the ratio over `level` is the ratio of a node with `1/level` of the weight.
+pub(super) fn stays_above(rule: Rule, node: NodeView, level: f64) -> f64 {
+    if !matches!(rule, Rule::ScreenSpace { .. }) {
+        return 0.0;
+    }
+    let node = NodeView {
+        weight: node.weight / level,
+        ..node
+    };
+    let general = split_holds(node, node.frustum, 1.0 / node.margin);
+    if node.clearance > 0.0 {
+        general.max(split_holds(node, 1.0, 0.0).min(node.clearance))
+    } else {
+        general
     }
 }
 
