@@ -61,7 +61,7 @@ pub struct MorphScratch {
 /// The terrain and rule a [`MorphScratch`] holds state for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Owner {
-    heights: *const f64,
+    heights: usize,
     size: (usize, usize),
     rule: Rule,
 }
@@ -95,7 +95,7 @@ impl MorphScratch {
     fn advance(&mut self, terrain: &ViewTerrain<'_>, view: &View, rule: Rule, tree: &CellTree) {
         let heights = terrain.heights();
         let owner = Owner {
-            heights: heights.values.as_ptr(),
+            heights: heights.values.as_ptr() as usize,
             size: (heights.width, heights.height),
             rule,
         };
