@@ -9,7 +9,8 @@
 //! * **incremental update**: [`Incremental::update`] on a smooth flight (the camera moves
 //!   1 m and turns 0.05° a frame, back and forth between two cameras) and on a straight
 //!   one (1 m a frame ahead, no turn);
-//! * **morph**: [`morph`] of the selection's mesh;
+//! * **morph**: [`morph`] of the selection's mesh (one frame repeated), and on the smooth
+//!   flight (the two cameras' own meshes alternately, one [`MorphScratch`] kept);
 //! * **triangulate**: the selection's triangles (hanging vertices included).
 //!
 //! Selection plus morphing a frame is incremental update + morph (+ triangulate to get
