@@ -9,7 +9,8 @@
 //! * **incremental update**: [`Incremental::update`] on a smooth flight (the camera moves
 //!   1 m and turns 0.05° a frame, back and forth between two cameras) and on a straight
 //!   one (1 m a frame ahead, no turn);
-//! * **morph**: [`morph`] of the selection's mesh;
+//! * **morph**: [`morph`] of the selection's mesh (one frame repeated), and on the smooth
+//!   flight (the two cameras' own meshes alternately, one [`MorphScratch`] kept);
 //! * **triangulate**: the selection's triangles (hanging vertices included).
 //!
 //! Selection plus morphing a frame is incremental update + morph (+ triangulate to get
@@ -189,6 +190,17 @@ fn bench_terrain(c: &mut Criterion, name: &str, raster: Raster) {
     });
     print_cpu_time(&format!("{name} morph"), 8, || {
         black_box(morph(&terrain, &a, rule, &tree, &mesh, &mut scratch));
+    });
+    let tree_b = terrain.select(&b, rule);
+    let frames = [
+        (&a, &tree, &mesh),
+        (&b, &tree_b, &terrain.triangulate(&tree_b)),
+    ];
+    let mut flight_scratch = MorphScratch::default();
+    print_cpu_time(&format!("{name} morph, smooth flight"), 24, || {
+        flip = !flip;
+        let (view, tree, mesh) = frames[usize::from(flip)];
+        black_box(morph(&terrain, view, rule, tree, mesh, &mut flight_scratch));
     });
     print_cpu_time(&format!("{name} triangulate"), 8, || {
         black_box(terrain.triangulate(&tree));

@@ -133,6 +133,28 @@ proptest! {
             prop_assert_eq!(frame_cracks(&terrain, &view, rule, &incremental, &mut scratch), 0, "frame {}", f);
         }
     }
+
+    /// Morphing frame after frame with one [`MorphScratch`] (heights and settled blends
+    /// kept from frame to frame) gives, bit for bit, the morph from scratch of every frame.
+    #[test]
+    fn morphs_kept_from_frame_to_frame_equal_the_morph_from_scratch(
+        w in 9usize..70, h in 9usize..70, seed in any::<u64>(), voids in any::<bool>(),
+        height in 5.0f64..80.0, turn in -2.0f64..2.0, tau in 0.3f64..4.0, frames in 3usize..16, step in 0.0002f64..0.05,
+    ) {
+        let decoded = decode_with_map(&terrain(w, h, seed, voids));
+        let terrain = decoded.terrain();
+        let rule = Rule::ScreenSpace { tau };
+        let mut kept = MorphScratch::default();
+        for f in 0..frames {
+            let view = flight(w, h, f as f64 * step, height, turn);
+            let tree = terrain.select(&view, rule);
+            let mesh = terrain.triangulate(&tree);
+            let morphed = morph(&terrain, &view, rule, &tree, &mesh, &mut kept);
+            let fresh = morph(&terrain, &view, rule, &tree, &mesh, &mut MorphScratch::default());
+            let bits = |z: &[f64]| z.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+            prop_assert!(bits(&morphed) == bits(&fresh), "frame {}: kept morph differs", f);
+        }
+    }
 }
 
 proptest! {

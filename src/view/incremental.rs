@@ -54,18 +54,45 @@ pub struct UpdateStats {
     pub revisited: usize,
 }
 
-/// When a leaf must next be looked at, in accumulated camera motion.
+/// When a leaf must next be looked at, in accumulated camera motion, held as `f32`
+/// rounded down (a leaf is looked at slightly early, never late) so that the leaf list an
+/// update copies is smaller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Expiry {
     /// Until then the leaf does not split.
-    own: f64,
+    own: f32,
     /// Until then its parent splits.
-    parent: f64,
+    parent: f32,
 }
 
 impl Expiry {
+    fn new(own: f64, parent: f64) -> Expiry {
+        Expiry {
+            own: round_down(own),
+            parent: round_down(parent),
+        }
+    }
+
+    fn own(self) -> f64 {
+        f64::from(self.own)
+    }
+
+    fn parent(self) -> f64 {
+        f64::from(self.parent)
+    }
+
     fn earliest(self) -> f64 {
-        self.own.min(self.parent)
+        f64::from(self.own.min(self.parent))
+    }
+}
+
+/// The largest `f32` at most `x`.
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) > x {
+        f.next_down()
+    } else {
+        f
     }
 }
 
@@ -148,7 +175,7 @@ const SAFETY: f64 = 0.999;
 
 /// The accumulated motion `slack` after `travelled` (slightly early, by [`SAFETY`]).
 #[inline]
-fn after(travelled: f64, slack: f64) -> f64 {
+pub(super) fn after(travelled: f64, slack: f64) -> f64 {
     travelled + slack.max(0.0) * SAFETY
 }
 
@@ -253,7 +280,7 @@ impl Incremental {
         leaves: &mut Leaves,
         stats: &mut UpdateStats,
     ) {
-        let parent_holds = expiry.parent > self.travelled;
+        let parent_holds = expiry.parent() > self.travelled;
         let top = if parent_holds {
             cell
         } else {
@@ -269,12 +296,12 @@ impl Incremental {
             return;
         }
         let parent = if parent_holds {
-            expiry.parent
+            expiry.parent()
         } else {
             self.parent_expiry(terrain, view, cell)
         };
-        if expiry.own > self.travelled {
-            leaves.push(cell, Expiry { parent, ..expiry });
+        if expiry.own() > self.travelled {
+            leaves.push(cell, Expiry::new(expiry.own(), parent));
             return;
         }
         let own = (cell.level > 0).then(|| self.evaluate(terrain, view, cell));
@@ -285,7 +312,7 @@ impl Incremental {
             let own = own.map_or(f64::INFINITY, |o| {
                 after(self.travelled, self.stay_unsplit(o))
             });
-            leaves.push(cell, Expiry { own, parent });
+            leaves.push(cell, Expiry::new(own, parent));
         }
     }
 
@@ -337,13 +364,7 @@ impl Incremental {
             if child.level == 0 {
                 if self.tree.is_meshed(child) {
                     let parent = after(self.travelled, parent_slack);
-                    leaves.push(
-                        child,
-                        Expiry {
-                            own: f64::INFINITY,
-                            parent,
-                        },
-                    );
+                    leaves.push(child, Expiry::new(f64::INFINITY, parent));
                 }
                 continue;
             }
@@ -351,10 +372,10 @@ impl Incremental {
             if void || self.rule.splits(own.ratio) {
                 self.refine(terrain, view, (child, own), leaves);
             } else {
-                let expiry = Expiry {
-                    own: after(self.travelled, self.stay_unsplit(own)),
-                    parent: after(self.travelled, parent_slack),
-                };
+                let expiry = Expiry::new(
+                    after(self.travelled, self.stay_unsplit(own)),
+                    after(self.travelled, parent_slack),
+                );
                 leaves.push(child, expiry);
             }
         }
@@ -390,10 +411,10 @@ impl Incremental {
         } else {
             self.stay_unsplit(own.unwrap_or_else(|| self.evaluate(terrain, view, cell)))
         };
-        Expiry {
-            own: after(self.travelled, own_slack),
-            parent: self.parent_expiry(terrain, view, cell),
-        }
+        Expiry::new(
+            after(self.travelled, own_slack),
+            self.parent_expiry(terrain, view, cell),
+        )
     }
 
     /// Until when the parent of leaf `cell` keeps splitting (infinite for a root).
@@ -448,15 +469,26 @@ impl Incremental {
         if terrain.is_void(cell.level, i, j) {
             return f64::INFINITY;
         }
-        if !matches!(self.rule, Rule::ScreenSpace { .. }) {
-            return 0.0;
-        }
-        let general = split_holds(node, node.frustum, 1.0 / node.margin);
-        if node.clearance > 0.0 {
-            general.max(split_holds(node, 1.0, 0.0).min(node.clearance))
-        } else {
-            general
-        }
+        stays_above(self.rule, node, 1.0)
+    }
+}
+
+/// How far the camera may move (in [`camera_motion`]'s measure) before node `node`, whose
+/// ratio is above `level`, could fall to `level` (0 under the area rule, which has no
+/// bound): the ratio over `level` is the ratio of a node with `1/level` of the weight.
+pub(super) fn stays_above(rule: Rule, node: NodeView, level: f64) -> f64 {
+    if !matches!(rule, Rule::ScreenSpace { .. }) {
+        return 0.0;
+    }
+    let node = NodeView {
+        weight: node.weight / level,
+        ..node
+    };
+    let general = split_holds(node, node.frustum, 1.0 / node.margin);
+    if node.clearance > 0.0 {
+        general.max(split_holds(node, 1.0, 0.0).min(node.clearance))
+    } else {
+        general
     }
 }
 
@@ -537,10 +569,7 @@ mod tests {
         };
         let source: Vec<(Cell, Expiry)> = (0..500)
             .map(|k| {
-                let expiry = Expiry {
-                    own: next(),
-                    parent: next(),
-                };
+                let expiry = Expiry::new(next(), next());
                 (Cell::new(0, k, 0), expiry)
             })
             .collect();

@@ -16,97 +16,61 @@
 //! that ancestor's blend however many levels up it sits. Every height is a function of the
 //! vertex alone, so an edge shared by two triangles has the same ends on both sides, and
 //! every height moves continuously with the camera.
+//!
+//! Frame to frame ([`MorphScratch`]), the morphed heights live in sample space (a vertex
+//! keeps its slot whatever appears or vanishes elsewhere) and are computed split node by
+//! split node, level by level from the coarsest; the mesh's vertices read them at the
+//! end. A split node whose ratio was at least 2 (blend 1) keeps blend 1 without being
+//! evaluated until the camera has moved as far as the ratio's bound allows (the
+//! incremental selection's bound, at twice the tolerance): only the transition band is
+//! evaluated again. The output is the from-scratch morph's, bit for bit.
+
+use glam::DVec3;
 
 use super::camera::View;
+use super::incremental::{after, camera_motion, stays_above};
 use super::selection::{blend_of_ratio, Rule, ViewTerrain};
 use crate::mesh::cells::CellTree;
 use crate::mesh::pyramid::{node_bounds, Diagonal};
 use crate::mesh::GridMesh;
 
-/// Reusable buffers for morphing frame after frame.
+/// What morphing keeps from frame to frame, for one terrain and rule (it starts again by
+/// itself when either changes, or the projection does): the morphed height of every
+/// sample, so a vertex keeps its place whatever the others do, and per node how far the
+/// camera may move before its blend factor could fall below 1.
 #[derive(Debug, Default)]
 pub struct MorphScratch {
-    /// The sample → vertex numbering of the current mesh.
-    index: VertexIndex,
-    /// Mesh vertex indices ordered by birth level, coarsest first.
-    order: Vec<u32>,
-    /// Vertices per birth level.
-    counts: Vec<usize>,
-    /// Blend factor of every split node this frame, index `m − 1` for level `m`
-    /// (meaningless for nodes that did not split).
+    /// Per sample, its morphed height in the last frame it was a vertex (its true height
+    /// before that).
+    samples: Vec<f64>,
+    /// Blend factor of every split node this frame, index `m − 1` for level `m`, row by
+    /// row (meaningless for nodes that did not split).
     blends: Vec<Vec<f32>>,
+    /// Per node (as `blends`), the camera motion up to which its ratio stays at least 2
+    /// (blend 1); below `travelled` when unknown.
+    settled: Vec<Vec<f64>>,
+    /// Camera motion accumulated since the state started (see [`camera_motion`]).
+    travelled: f64,
+    /// The last frame's view, and what the state belongs to.
+    last: Option<View>,
+    owner: Option<Owner>,
+    /// Corners of the terrain's bounding box.
+    extent: [DVec3; 8],
 }
 
-/// Which samples are vertices of a mesh and their vertex numbers (the mesh numbers its
-/// vertices in sample order): one bit a sample and a running count a 64-sample word, so
-/// a lookup is two loads and a population count, in 1/48 of the memory of a
-/// per-sample table.
-#[derive(Debug, Default)]
-struct VertexIndex {
-    /// Bit `s % 64` of word `s / 64`: sample `s` is a vertex.
-    is_vertex: Vec<u64>,
-    /// Vertices before each word of `is_vertex`.
-    rank_before: Vec<u32>,
-}
-
-impl VertexIndex {
-    /// The numbering of `mesh`'s vertices.
-    fn rebuild(&mut self, mesh: &GridMesh) {
-        let words = (mesh.width * mesh.height).div_ceil(64);
-        self.is_vertex.clear();
-        self.is_vertex.resize(words, 0);
-        for &s in &mesh.vertices {
-            self.is_vertex[s as usize / 64] |= 1 << (s % 64);
-        }
-        self.rank_before.clear();
-        let mut total = 0u32;
-        for &word in &self.is_vertex {
-            self.rank_before.push(total);
-            total += word.count_ones();
-        }
-    }
-
-    /// The vertex at sample `s`, if it is one.
-    #[inline]
-    fn vertex(&self, s: usize) -> Option<usize> {
-        let (word, bit) = (self.is_vertex[s / 64], s % 64);
-        (word >> bit & 1 != 0).then(|| {
-            (self.rank_before[s / 64] + (word & ((1u64 << bit) - 1)).count_ones()) as usize
-        })
-    }
-}
-
-/// How coarse a coordinate is along a side of `samples` samples: the highest level at
-/// which it is a node corner (the ends are corners at every level).
-#[inline]
-fn corner_level(c: usize, samples: usize, levels: u32) -> u32 {
-    if c == 0 || c + 1 == samples {
-        levels
-    } else {
-        c.trailing_zeros().min(levels)
-    }
-}
-
-/// What a vertex's morph reads: the frame's selection and blends, and the heights
-/// morphed so far (by vertex).
-struct MorphFrame<'s> {
-    terrain: &'s ViewTerrain<'s>,
-    tree: &'s CellTree,
-    blends: &'s [Vec<f32>],
-    index: &'s VertexIndex,
-    morphed: &'s [f64],
-}
-
-/// Where a vertex's coarse height `v_p` comes from.
-enum Coarse {
-    /// The parents' edge `[x0, y0, x1, y1]` through it, at `t` from the first end.
-    Edge([usize; 4], f64),
-    /// The two triangles of parent `(i, j)`.
-    Inside(usize, usize),
+/// The terrain and rule a [`MorphScratch`] holds state for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Owner {
+    heights: usize,
+    size: (usize, usize),
+    rule: Rule,
 }
 
 /// The morphed height (data units) of every vertex of `mesh`, the view mesh of `tree`
-/// under `view` and `rule`.
+/// under `view` and `rule`. Vertices are morphed in sample space, level by level from the
+/// coarsest, by the split node they are born in (its centre and edge midpoints); a node
+/// whose ratio was at least 2 (blend 1) and cannot have fallen below since is not
+/// evaluated again.
 pub fn morph(
     terrain: &ViewTerrain<'_>,
     view: &View,
@@ -115,185 +79,202 @@ pub fn morph(
     mesh: &GridMesh,
     scratch: &mut MorphScratch,
 ) -> Vec<f64> {
-    let heights = terrain.heights();
-    let (w, h) = (heights.width, heights.height);
-    let levels = terrain.levels();
-    scratch.index.rebuild(mesh);
-    order_by_birth(mesh, levels, scratch);
-    split_blends(terrain, view, rule, tree, &mut scratch.blends);
-    let mut out = vec![0.0; mesh.vertices.len()];
-    for &v in &scratch.order {
-        let s = mesh.vertices[v as usize] as usize;
-        let (x, y) = (s % w, s / w);
-        let truth = heights.values[s];
-        let birth = corner_level(x, w, levels).min(corner_level(y, h, levels));
-        out[v as usize] = if birth >= levels {
-            truth
-        } else {
-            let frame = MorphFrame {
-                terrain,
-                tree,
-                blends: &scratch.blends,
-                index: &scratch.index,
-                morphed: &out,
-            };
-            frame.height(x, y, truth, birth + 1)
+    scratch.advance(terrain, view, rule, tree);
+    for m in (1..=terrain.levels()).rev() {
+        scratch.level_blends(terrain, view, rule, tree, m);
+        scratch.level_vertices(terrain, tree, m);
+    }
+    mesh.vertices
+        .iter()
+        .map(|&s| scratch.samples[s as usize])
+        .collect()
+}
+
+impl MorphScratch {
+    /// Moves the state to `view` (from scratch for another terrain, rule or projection).
+    fn advance(&mut self, terrain: &ViewTerrain<'_>, view: &View, rule: Rule, tree: &CellTree) {
+        let heights = terrain.heights();
+        let owner = Owner {
+            heights: heights.values.as_ptr() as usize,
+            size: (heights.width, heights.height),
+            rule,
         };
+        if self.owner != Some(owner) {
+            self.owner = Some(owner);
+            self.samples.clear();
+            self.samples.extend_from_slice(heights.values);
+            self.last = None;
+            let (lo, hi) = terrain.extent();
+            self.extent = [0, 1, 2, 3, 4, 5, 6, 7].map(|k| {
+                DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo)
+            });
+        }
+        let motion = self.last.map_or(f64::INFINITY, |last| {
+            camera_motion(&last, view, &self.extent)
+        });
+        self.last = Some(*view);
+        let levels = terrain.levels() as usize;
+        if motion.is_finite() {
+            self.travelled += motion;
+        } else {
+            self.travelled = 0.0;
+            self.settled.clear();
+        }
+        self.blends.resize(levels, Vec::new());
+        self.settled.resize(levels, Vec::new());
+        for m in 1..=levels {
+            let (nw, nh) = tree.nodes(m as u32);
+            self.blends[m - 1].resize(nw * nh, 0.0);
+            self.settled[m - 1].resize(nw * nh, f64::NEG_INFINITY);
+        }
     }
-    out
-}
 
-/// Counting sort of the vertices by birth level, coarsest first, into `scratch.order`.
-fn order_by_birth(mesh: &GridMesh, levels: u32, scratch: &mut MorphScratch) {
-    let (w, h) = (mesh.width, mesh.height);
-    let birth = |s: u32| {
-        let s = s as usize;
-        corner_level(s % w, w, levels).min(corner_level(s / w, h, levels)) as usize
-    };
-    scratch.counts.clear();
-    scratch.counts.resize(levels as usize + 2, 0);
-    for &s in &mesh.vertices {
-        scratch.counts[levels as usize - birth(s)] += 1;
-    }
-    let mut start = 0;
-    for c in scratch.counts.iter_mut() {
-        let n = *c;
-        *c = start;
-        start += n;
-    }
-    scratch.order.clear();
-    scratch.order.resize(mesh.vertices.len(), 0);
-    for (v, &s) in mesh.vertices.iter().enumerate() {
-        let slot = &mut scratch.counts[levels as usize - birth(s)];
-        scratch.order[*slot] = v as u32;
-        *slot += 1;
-    }
-}
-
-/// The blend factor of every split node of `tree` (1 for void ones), one evaluation each,
-/// into `blends`, level by level in row order (every split node's parent split too, so
-/// these are the nodes a descent from the roots would reach).
-fn split_blends(
-    terrain: &ViewTerrain<'_>,
-    view: &View,
-    rule: Rule,
-    tree: &CellTree,
-    blends: &mut Vec<Vec<f32>>,
-) {
-    let levels = terrain.levels();
-    blends.resize(levels as usize, Vec::new());
-    for m in 1..=levels {
-        let (nw, nh) = tree.nodes(m);
-        let level = &mut blends[m as usize - 1];
-        level.resize(nw * nh, 0.0);
+    /// The blend factor of every split node of level `m` (1 for void ones, and for those
+    /// still settled), evaluating the others and settling those at blend 1.
+    fn level_blends(
+        &mut self,
+        terrain: &ViewTerrain<'_>,
+        view: &View,
+        rule: Rule,
+        tree: &CellTree,
+        m: u32,
+    ) {
+        let nw = tree.nodes(m).0;
+        let (blends, settled) = (
+            &mut self.blends[m as usize - 1],
+            &mut self.settled[m as usize - 1],
+        );
         for (i, j) in tree.split_nodes(m) {
-            let b = if terrain.is_void(m, i, j) {
+            let k = j * nw + i;
+            blends[k] = if settled[k] > self.travelled || terrain.is_void(m, i, j) {
                 1.0
             } else {
-                blend_of_ratio(terrain.evaluate(view, rule, m, i, j).ratio)
+                let node = terrain.evaluate(view, rule, m, i, j);
+                let b = blend_of_ratio(node.ratio);
+                if b >= 1.0 {
+                    settled[k] = after(self.travelled, stays_above(rule, node, 2.0));
+                }
+                b as f32
             };
-            level[j * nw + i] = b as f32;
+        }
+    }
+
+    /// Morphs the vertices born in the split nodes of level `m`: each node's centre and
+    /// the midpoints of its bottom and right edges, and of its top and left ones where
+    /// the node across does not split (which would morph them itself). A midpoint blends
+    /// with the smaller factor of the two nodes sharing its edge (0 beside a node that
+    /// does not split: it stays on the coarse edge), a centre with its node's.
+    fn level_vertices(&mut self, terrain: &ViewTerrain<'_>, tree: &CellTree, m: u32) {
+        let heights = terrain.heights();
+        let (w, h) = (heights.width, heights.height);
+        let half = 1usize << (m - 1);
+        let nw = tree.nodes(m).0;
+        let blends = &self.blends[m as usize - 1];
+        let blend = |i: usize, j: usize| {
+            if tree.is_split(m, i, j) {
+                f64::from(blends[j * nw + i])
+            } else {
+                0.0
+            }
+        };
+        let mut out = Vertices {
+            samples: &mut self.samples,
+            truth: heights.values,
+            width: w,
+        };
+        for (i, j) in tree.split_nodes(m) {
+            let (x0, y0, x1, y1) = node_bounds(w, h, m, i, j);
+            let (xm, ym) = (x0 + half, y0 + half);
+            let own = f64::from(blends[j * nw + i]);
+            let u = (xm - x0) as f64 / (x1 - x0) as f64;
+            let v = (ym - y0) as f64 / (y1 - y0) as f64;
+            if xm < x1 {
+                if j == 0 || !tree.is_split(m, i, j - 1) {
+                    let b = if j == 0 {
+                        own
+                    } else {
+                        own.min(blend(i, j - 1))
+                    };
+                    out.edge((xm, y0), [(x0, y0), (x1, y0)], u, b);
+                }
+                let b = if y1 + 1 < h {
+                    own.min(blend(i, j + 1))
+                } else {
+                    own
+                };
+                out.edge((xm, y1), [(x0, y1), (x1, y1)], u, b);
+            }
+            if ym < y1 {
+                if i == 0 || !tree.is_split(m, i - 1, j) {
+                    let b = if i == 0 {
+                        own
+                    } else {
+                        own.min(blend(i - 1, j))
+                    };
+                    out.edge((x0, ym), [(x0, y0), (x0, y1)], v, b);
+                }
+                let b = if x1 + 1 < w {
+                    own.min(blend(i + 1, j))
+                } else {
+                    own
+                };
+                out.edge((x1, ym), [(x1, y0), (x1, y1)], v, b);
+                if xm < x1 {
+                    let diagonal = || terrain.diagonal(m, i, j);
+                    out.centre((xm, ym), (x0, y0, x1, y1), diagonal, (u, v), own);
+                }
+            }
         }
     }
 }
 
-impl MorphFrame<'_> {
-    /// Blend factor of node `(m, i, j)`: its own when it split, else 0.
+/// The morphed heights of a frame in sample space, and the true ones.
+struct Vertices<'a> {
+    samples: &'a mut [f64],
+    truth: &'a [f64],
+    width: usize,
+}
+
+impl Vertices<'_> {
+    /// Morphs the vertex at `(x, y)`, at `t` along the coarse edge between `ends`, with
+    /// blend factor `blend`.
     #[inline]
-    fn blend(&self, m: u32, i: usize, j: usize) -> f64 {
-        if self.tree.is_split(m, i, j) {
-            f64::from(self.blends[m as usize - 1][j * self.tree.nodes(m).0 + i])
+    fn edge(&mut self, (x, y): (usize, usize), ends: [(usize, usize); 2], t: f64, blend: f64) {
+        let w = self.width;
+        let s = y * w + x;
+        let truth = self.truth[s];
+        self.samples[s] = if blend >= 1.0 {
+            truth
         } else {
-            0.0
-        }
+            let [(ax, ay), (bx, by)] = ends;
+            let (a, b) = (self.samples[ay * w + ax], self.samples[by * w + bx]);
+            let coarse = a + t * (b - a);
+            coarse + blend * (truth - coarse)
+        };
     }
 
-    /// The morphed height of the vertex at (`x`, `y`), true height `truth`, born below
-    /// level `parent`: `v_p + b·(truth − v_p)`, `(v_p, b)` from the parents' edge through
-    /// it or the parent it lies inside.
+    /// Morphs the vertex at `(x, y)`, at `(u, v)` inside the coarse node `bounds` drawn
+    /// as two triangles along `diagonal`, with blend factor `blend`.
     #[inline]
-    fn height(&self, x: usize, y: usize, truth: f64, parent: u32) -> f64 {
-        let heights = self.terrain.heights();
-        let (w, h) = (heights.width, heights.height);
-        let levels = self.terrain.levels();
-        let span = 1usize << parent;
-        // The node range along a coordinate and the nodes on either side of a corner
-        // coordinate: the one ending there and the one starting there.
-        let along = |c: usize, samples: usize| {
-            let c0 = c / span * span;
-            (c0, (c0 + span).min(samples - 1))
-        };
-        let sides = |c: usize, samples: usize| {
-            let before = (c > 0).then(|| c.div_ceil(span) - 1);
-            let after = (c + 1 < samples).then_some(c / span);
-            [before, after]
-        };
-        let blend_of = |nodes: [Option<(usize, usize)>; 2]| {
-            nodes
-                .into_iter()
-                .flatten()
-                .map(|(i, j)| self.blend(parent, i, j))
-                .fold(1.0, f64::min)
-        };
-        let (blend, source) = if corner_level(x, w, levels) >= parent {
-            // On a vertical edge of the parents at column x.
-            let (y0, y1) = along(y, h);
-            let j = y / span;
-            let b = blend_of(sides(x, w).map(|i| i.map(|i| (i, j))));
-            (
-                b,
-                Coarse::Edge([x, y0, x, y1], (y - y0) as f64 / (y1 - y0) as f64),
-            )
-        } else if corner_level(y, h, levels) >= parent {
-            let (x0, x1) = along(x, w);
-            let i = x / span;
-            let b = blend_of(sides(y, h).map(|j| j.map(|j| (i, j))));
-            (
-                b,
-                Coarse::Edge([x0, y, x1, y], (x - x0) as f64 / (x1 - x0) as f64),
-            )
+    fn centre(
+        &mut self,
+        (x, y): (usize, usize),
+        (x0, y0, x1, y1): (usize, usize, usize, usize),
+        diagonal: impl Fn() -> Diagonal,
+        (u, v): (f64, f64),
+        blend: f64,
+    ) {
+        let w = self.width;
+        let s = y * w + x;
+        let truth = self.truth[s];
+        self.samples[s] = if blend >= 1.0 {
+            truth
         } else {
-            let (i, j) = (x / span, y / span);
-            (self.blend(parent, i, j), Coarse::Inside(i, j))
+            let at = |x: usize, y: usize| self.samples[y * w + x];
+            let corners = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
+            let coarse = two_triangles(corners, diagonal(), u, v);
+            coarse + blend * (truth - coarse)
         };
-        if blend >= 1.0 {
-            return truth;
-        }
-        let coarse = match source {
-            Coarse::Edge([x0, y0, x1, y1], t) => {
-                let (a, b) = (self.at(x0, y0), self.at(x1, y1));
-                a + t * (b - a)
-            }
-            Coarse::Inside(i, j) => self.inside(parent, i, j, x, y),
-        };
-        coarse + blend * (truth - coarse)
-    }
-
-    /// The morphed height of the vertex at (`x`, `y`); the true height of a sample that
-    /// is no vertex (read only where the blend is 1, so its value does not count).
-    #[inline]
-    fn at(&self, x: usize, y: usize) -> f64 {
-        let heights = self.terrain.heights();
-        let s = y * heights.width + x;
-        self.index
-            .vertex(s)
-            .map_or(heights.values[s], |v| self.morphed[v])
-    }
-
-    /// The height at (`x`, `y`) of parent `(parent, i, j)` drawn as two triangles.
-    #[inline]
-    fn inside(&self, parent: u32, i: usize, j: usize, x: usize, y: usize) -> f64 {
-        let heights = self.terrain.heights();
-        let (x0, y0, x1, y1) = node_bounds(heights.width, heights.height, parent, i, j);
-        let corners = [
-            self.at(x0, y0),
-            self.at(x1, y0),
-            self.at(x0, y1),
-            self.at(x1, y1),
-        ];
-        let u = (x - x0) as f64 / (x1 - x0) as f64;
-        let v = (y - y0) as f64 / (y1 - y0) as f64;
-        two_triangles(corners, self.terrain.diagonal(parent, i, j), u, v)
     }
 }
 
