@@ -241,16 +241,11 @@ impl Vertices<'_> {
     #[inline]
     fn edge(&mut self, (x, y): (usize, usize), ends: [(usize, usize); 2], t: f64, blend: f64) {
         let w = self.width;
-        let s = y * w + x;
-        let truth = self.truth[s];
-        self.samples[s] = if blend >= 1.0 {
-            truth
-        } else {
+        self.blend(y * w + x, blend, |heights| {
             let [(ax, ay), (bx, by)] = ends;
-            let (a, b) = (self.samples[ay * w + ax], self.samples[by * w + bx]);
-            let coarse = a + t * (b - a);
-            coarse + blend * (truth - coarse)
-        };
+            let (a, b) = (heights[ay * w + ax], heights[by * w + bx]);
+            a + t * (b - a)
+        });
     }
 
     /// Morphs the vertex at `(x, y)`, at `(u, v)` inside the coarse node `bounds` drawn
@@ -265,14 +260,22 @@ impl Vertices<'_> {
         blend: f64,
     ) {
         let w = self.width;
-        let s = y * w + x;
+        self.blend(y * w + x, blend, |heights| {
+            let at = |x: usize, y: usize| heights[y * w + x];
+            let corners = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
+            two_triangles(corners, diagonal(), u, v)
+        });
+    }
+
+    /// Sets sample `s` to its true height, or below blend factor 1 to the height
+    /// `coarse` reads off the morphed heights, moved `blend` of the way to the truth.
+    #[inline]
+    fn blend(&mut self, s: usize, blend: f64, coarse: impl FnOnce(&[f64]) -> f64) {
         let truth = self.truth[s];
         self.samples[s] = if blend >= 1.0 {
             truth
         } else {
-            let at = |x: usize, y: usize| self.samples[y * w + x];
-            let corners = [at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)];
-            let coarse = two_triangles(corners, diagonal(), u, v);
+            let coarse = coarse(self.samples);
             coarse + blend * (truth - coarse)
         };
     }
