@@ -73,7 +73,7 @@ pub(crate) fn prepare_53(
     }
     let levels = level_count(norms.len());
     wavelet::forward_53(&mut values, width, height, levels);
-    if voids == VoidCoefficients::Zeroed && mask.iter().any(|&m| !m) {
+    if voids == VoidCoefficients::Zeroed {
         wavelet::zero_unreached(&mut values, width, height, levels, Wavelet::Int53, mask);
     }
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
@@ -155,7 +155,7 @@ pub(crate) fn prepare_97(
     let (mean, mut data) = centred_samples(raster, mask);
     let levels = level_count(norms.len());
     wavelet::forward_97(&mut data, width, height, levels);
-    if voids == VoidCoefficients::Zeroed && mask.iter().any(|&m| !m) {
+    if voids == VoidCoefficients::Zeroed {
         wavelet::zero_unreached(&mut data, width, height, levels, Wavelet::Cdf97, mask);
     }
     // Scale every subband by its norm so one quantiser step means the same pixel error

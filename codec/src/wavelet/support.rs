@@ -16,7 +16,7 @@ use super::{regions, Wavelet};
 
 /// Zeroes the coefficients of a `levels`-level transform in `data` (Mallat layout,
 /// row-major, `width × height`) whose synthesis support holds no sample where `valid`
-/// is true.
+/// is true (nothing to do without voids).
 pub(crate) fn zero_unreached<T: Copy + Default>(
     data: &mut [T],
     width: usize,
@@ -25,10 +25,14 @@ pub(crate) fn zero_unreached<T: Copy + Default>(
     wavelet: Wavelet,
     valid: &[bool],
 ) {
+    if valid.iter().all(|&v| v) {
+        return;
+    }
     let reach = Reach::of(wavelet);
+    let regions = regions(width, height, levels);
     // `needed` covers the signal one level finer than the region being visited.
     let mut needed = valid.to_vec();
-    for &(lw, lh) in regions(width, height, levels).iter().take(levels as usize) {
+    for &(lw, lh) in &regions[..levels as usize] {
         let rows = reach.dilate_rows(&needed, lw, lh);
         let region = reach.dilate_columns(&rows, lw, lh);
         let (cw, ch) = (lw.div_ceil(2), lh.div_ceil(2));
@@ -43,7 +47,7 @@ pub(crate) fn zero_unreached<T: Copy + Default>(
             .flat_map(|y| region[y * lw..y * lw + cw].iter().copied())
             .collect();
     }
-    let (llw, llh) = *regions(width, height, levels).last().expect("never empty");
+    let (llw, llh) = regions[levels as usize];
     for y in 0..llh {
         for x in 0..llw {
             if !needed[y * llw + x] {
