@@ -283,8 +283,81 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
             "unknown flags {flags:#x}"
         )));
     }
-    let width = r.varint_u32("width")?;
-    let height = r.varint_u32("height")?;
+    let size = (r.varint_u32("width")?, r.varint_u32("height")?);
+    let kind = read_stream_kind(r)?;
+    if flags & flag::TILED != 0 {
+        if matches!(kind.coder, Coder::V3 | Coder::V4) {
+            return Err(CodecError::InvalidHeader(
+                "a tiled header with the primed-models bit".into(),
+            ));
+        }
+        return Ok((parse_tiled(r, flags, size, &kind)?, false));
+    }
+    if flags & flag::OVERLAP != 0 {
+        return Err(CodecError::InvalidHeader(
+            "a tile overlap in a single stream".into(),
+        ));
+    }
+    let (mapping, coefficient_step) = read_mapping(r, flags, kind.wavelet)?;
+    let (max_error, valid_range, nodata) = read_values(r, flags, kind.mode)?;
+    let top_plane = match r.u8()? {
+        0xFF => None,
+        p => Some(p),
+    };
+    let bands = read_band_scales(r, flags, size, &kind)?;
+    let payload_len = r.varint()?;
+    let mask_len = if flags & flag::MASK != 0 {
+        r.varint_u32("mask length")?
+    } else {
+        0
+    };
+    let (residual_len, correction_step) =
+        read_residual(r, flags, (kind.mode, kind.sample_type, max_error))?;
+    let ladder_len = r.varint_u32("ladder length")?;
+    let (georef, metadata) = read_gis(r, flags)?;
+    let mut header = Header {
+        mapping,
+        max_error,
+        coefficient_step,
+        nodata,
+        valid_range,
+        top_plane,
+        coder: kind.coder,
+        bands,
+        payload_len,
+        payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
+        mask_len,
+        residual_len,
+        correction_step,
+        ladder_len,
+        georef,
+        metadata,
+        ..Header::whole_raster(
+            size.0,
+            size.1,
+            kind.sample_type,
+            kind.wavelet,
+            kind.levels,
+            kind.mode,
+        )
+    };
+    if flags & flag::BANDS_LISTED == 0 {
+        header.derived = super::DerivedMemo(Some(super::DerivedBands::as_read(&header)));
+    }
+    Ok((header, flags & flag::RANGE_IN_LADDER != 0))
+}
+
+/// What the `kinds` and levels bytes say: the coder, sample type, wavelet, levels and mode.
+struct StreamKind {
+    coder: Coder,
+    sample_type: SampleType,
+    wavelet: Wavelet,
+    levels: u8,
+    mode: Mode,
+}
+
+/// Reads the `kinds` byte and the levels byte (whose top bits name the coder).
+fn read_stream_kind(r: &mut Reader) -> Result<StreamKind, CodecError> {
     let kinds = r.u8()?;
     let levels_byte = r.u8()?;
     let coder = read_coder(kinds, levels_byte)?;
@@ -298,28 +371,23 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         pos: 0,
     };
     let (sample_type, wavelet, levels, mode) = read_kinds(&mut codes)?;
-    if flags & flag::TILED != 0 {
-        if matches!(coder, Coder::V3 | Coder::V4) {
-            return Err(CodecError::InvalidHeader(
-                "a tiled header with the primed-models bit".into(),
-            ));
-        }
-        let header = parse_tiled(
-            r,
-            flags,
-            (width, height),
-            sample_type,
-            wavelet,
-            levels,
-            mode,
-        )?;
-        return Ok((header, false));
-    }
-    if flags & flag::OVERLAP != 0 {
-        return Err(CodecError::InvalidHeader(
-            "a tile overlap in a single stream".into(),
-        ));
-    }
+    Ok(StreamKind {
+        coder,
+        sample_type,
+        wavelet,
+        levels,
+        mode,
+    })
+}
+
+/// The value mapping (offset and step; two raw f32s under flag 12) and the coefficient
+/// step: the stored step is the sample step of a 5/3 stream, the coefficient step of a
+/// 9/7 one.
+fn read_mapping(
+    r: &mut Reader,
+    flags: u64,
+    wavelet: Wavelet,
+) -> Result<(crate::quantize::ValueMapping, f64), CodecError> {
     let (offset, stored_step) = if flags & flag::F32_MAPPING != 0 {
         let mut f32_value = || Ok::<_, CodecError>(f64::from(f32::from_bits(r.u32()?)));
         (f32_value()?, f32_value()?)
@@ -330,59 +398,27 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         Wavelet::Int53 => (stored_step, 1.0),
         Wavelet::Cdf97 => (1.0, stored_step),
     };
-    let (max_error, (min, max), nodata) = read_values(r, flags, mode)?;
-    let top_plane = match r.u8()? {
-        0xFF => None,
-        p => Some(p),
-    };
-    super::check_levels(width, height, levels)?;
-    let bands = if flags & flag::BANDS_LISTED != 0 {
-        super::read_bands(r, wavelet, levels)?
-    } else {
-        derived_bands(wavelet, width, height, levels).ok_or_else(|| {
-            CodecError::InvalidHeader("subband scales must be listed at this size".into())
-        })?
-    };
-    let payload_len = r.varint()?;
-    let mask_len = if flags & flag::MASK != 0 {
-        r.varint_u32("mask length")?
-    } else {
-        0
-    };
-    let (residual_len, correction_step) = read_residual(r, flags, (mode, sample_type, max_error))?;
-    let ladder_len = r.varint_u32("ladder length")?;
-    let (georef, metadata) = read_gis(r, flags)?;
-    let mut header = Header {
-        width,
-        height,
-        sample_type,
-        wavelet,
-        levels,
-        mode,
-        mapping: crate::quantize::ValueMapping { offset, step },
-        max_error,
+    Ok((
+        crate::quantize::ValueMapping { offset, step },
         coefficient_step,
-        nodata,
-        valid_range: (min, max),
-        top_plane,
-        coder,
-        bands,
-        derived: super::DerivedMemo(None),
-        payload_len,
-        payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
-        mask_len,
-        residual_len,
-        correction_step,
-        ladder_len,
-        passes: Vec::new(),
-        georef,
-        metadata,
-        tiling: None,
-    };
-    if flags & flag::BANDS_LISTED == 0 {
-        header.derived = super::DerivedMemo(Some(super::DerivedBands::as_read(&header)));
+    ))
+}
+
+/// The subbands' shifts and scales: listed (flag 2), or derived from the dimensions.
+fn read_band_scales(
+    r: &mut Reader,
+    flags: u64,
+    (width, height): (u32, u32),
+    kind: &StreamKind,
+) -> Result<Vec<(u8, f64)>, CodecError> {
+    super::check_levels(width, height, kind.levels)?;
+    if flags & flag::BANDS_LISTED != 0 {
+        super::read_bands(r, kind.wavelet, kind.levels)
+    } else {
+        derived_bands(kind.wavelet, width, height, kind.levels).ok_or_else(|| {
+            CodecError::InvalidHeader("subband scales must be listed at this size".into())
+        })
     }
-    Ok((header, flags & flag::RANGE_IN_LADDER != 0))
 }
 
 /// The residual section's length and correction step (flag 6; the step listed, or
@@ -486,10 +522,7 @@ fn parse_tiled(
     r: &mut Reader,
     flags: u64,
     (width, height): (u32, u32),
-    sample_type: SampleType,
-    wavelet: Wavelet,
-    levels: u8,
-    mode: Mode,
+    kind: &StreamKind,
 ) -> Result<Header, CodecError> {
     let stream_only = flag::PAYLOAD_TRUNCATED
         | flag::BANDS_LISTED
@@ -513,7 +546,7 @@ fn parse_tiled(
     } else {
         0
     };
-    let (max_error, valid_range, nodata) = read_values(r, flags, mode)?;
+    let (max_error, valid_range, nodata) = read_values(r, flags, kind.mode)?;
     let index_len = r.varint()?;
     let (georef, metadata) = read_gis(r, flags)?;
     Ok(Header {
@@ -528,7 +561,14 @@ fn parse_tiled(
             overlap,
             index_len,
         }),
-        ..Header::whole_raster(width, height, sample_type, wavelet, levels, mode)
+        ..Header::whole_raster(
+            width,
+            height,
+            kind.sample_type,
+            kind.wavelet,
+            kind.levels,
+            kind.mode,
+        )
     })
 }
 
