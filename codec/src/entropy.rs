@@ -6,7 +6,7 @@
 //! quickly changing and stationary statistics.
 //!
 //! Encoders implement [`BitSink`]; besides the real [`ArithmeticEncoder`] there is a
-//! [`BitCounter`] that only sums the ideal code length, so the EZW coder can measure what a
+//! `BitCounter` (behind the `internals` and `research` features) that only sums the ideal code length, so the EZW coder can measure what a
 //! context buys without producing bytes.
 //!
 //! The decoder reads zeros past the end of its input and reports [`ArithmeticDecoder::exhausted`]

@@ -7,7 +7,7 @@ use super::{FlagGrid, ParentRow, Side, SIG};
 use crate::entropy::BitModel;
 
 /// Which context information the models are selected by (all of it in every stream; the
-/// others exist to measure what each piece buys, with [`super::count_bits`]).
+/// others exist to measure what each piece buys, with `count_bits`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ContextChoice {
     /// Subband class (LL, coarse, level 2, level 1) for significance, zerotree, refinement.

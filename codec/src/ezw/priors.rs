@@ -11,7 +11,7 @@ use super::contexts::Coder;
 use crate::entropy::BitModel;
 
 /// Starting probabilities of a 0 bit (1/65536 units) of coder 3's models, in the order
-/// of [`Contexts`]' groups: significance, zerotree, sign, refinement.
+/// of [`super::Contexts`]' groups: significance, zerotree, sign, refinement.
 const TABLES: [&[u16]; 4] = [&SIGNIFICANCE, &ZEROTREE, &SIGN, &REFINEMENT];
 
 include!("prior_tables.rs");

@@ -45,6 +45,7 @@ pub(crate) enum VoidCoefficients {
     Zeroed,
     /// The transform of the filled voids: what coder 3's prior tables were trained on
     /// (they are part of the format, so their training stays as it was).
+    #[cfg(feature = "research")]
     Filled,
 }
 

@@ -1,7 +1,7 @@
 //! Tiled files: a raster cut into tiles, each an independent embedded stream, listed by
 //! an index right after the header. A reader plans every byte range it needs from the
 //! header and index alone: a window decode fetches only the tiles it touches, and a
-//! decode at a bit rate only a prefix of each tile, chosen by [`allocate`] so every tile
+//! decode at a bit rate only a prefix of each tile, chosen by [`allocate()`] so every tile
 //! stops at the same rate–distortion slope. Tiles are coded in parallel; the bytes do not
 //! depend on the number of threads.
 
@@ -291,7 +291,7 @@ fn weakest_mode(tiles: &[TileSummary]) -> Mode {
 
 /// Encodes `raster` as a tiled file on `grid` (see [`crate::encode`], which calls this
 /// for rasters larger than a tile). With a byte budget every tile is coded up to a cap,
-/// then cut where [`allocate`] says.
+/// then cut where [`allocate()`] says.
 pub(crate) fn encode(
     raster: &Raster,
     options: &EncodeOptions,
@@ -508,7 +508,7 @@ fn cut_recoded(
 
 /// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
 /// it needs: the header and index, then for each tile the window touches the prefix
-/// [`allocate`] gives it under `options.max_bytes` (all of it without a budget).
+/// [`allocate()`] gives it under `options.max_bytes` (all of it without a budget).
 pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
