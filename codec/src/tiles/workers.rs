@@ -1,7 +1,12 @@
 //! The threads tiles are coded on: a rayon pool of the requested size, or the calling
 //! thread alone.
+//!
+//! Pools are kept for the life of the process, one per thread count: a caller coding a
+//! large raster block by block (one call a block) reuses the same threads, and their
+//! allocator arenas, instead of starting new ones for every block.
 
 use std::ops::Range;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use rayon::prelude::*;
 
@@ -9,9 +14,12 @@ use crate::error::CodecError;
 
 /// Runs per-tile work on `count` threads, results in tile order.
 pub(crate) struct Workers {
-    pool: Option<rayon::ThreadPool>,
+    pool: Option<Arc<rayon::ThreadPool>>,
     count: usize,
 }
+
+/// The pools started so far, by thread count.
+static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
 
 impl Workers {
     /// `threads` threads; 0 for one per core.
@@ -20,12 +28,7 @@ impl Workers {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         };
-        let pool = (count > 1)
-            .then(|| rayon::ThreadPoolBuilder::new().num_threads(count).build())
-            .transpose()
-            .map_err(|e| {
-                CodecError::InvalidParameters(format!("cannot start {count} threads: {e}"))
-            })?;
+        let pool = (count > 1).then(|| shared_pool(count)).transpose()?;
         Ok(Workers { pool, count })
     }
 
@@ -47,4 +50,19 @@ impl Workers {
             _ => items.map(work).collect(),
         }
     }
+}
+
+/// The kept pool of `count` threads, started on first use.
+fn shared_pool(count: usize) -> Result<Arc<rayon::ThreadPool>, CodecError> {
+    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, pool)) = pools.iter().find(|(n, _)| *n == count) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(count)
+        .build()
+        .map_err(|e| CodecError::InvalidParameters(format!("cannot start {count} threads: {e}")))?;
+    let pool = Arc::new(pool);
+    pools.push((count, Arc::clone(&pool)));
+    Ok(pool)
 }
