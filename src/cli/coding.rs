@@ -425,6 +425,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
     let limits = args.input_args.limits();
     let (header, header_len) = read_header(&mut source).map_err(stream_error)?;
     let layout = TiledLayout::read(&mut source, limits.max_memory / 4).map_err(stream_error)?;
+    if layout.is_some() {
+        super::allocator::keep_freed_tile_buffers();
+    }
     let samples = header.sample_count();
     let max_bytes = match (args.bpp, args.bytes) {
         (Some(bpp), _) if bpp.is_finite() && bpp > 0.0 => {

@@ -1,5 +1,6 @@
 //! Subcommands, their arguments and the error type the binary maps to exit codes.
 
+mod allocator;
 mod coding;
 mod demo;
 mod mesh;
