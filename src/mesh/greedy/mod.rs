@@ -154,6 +154,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             let Some(worst) = worst else {
                 return;
             };
+            self.choose_nodata_candidate(worst);
             let error = self.assessments[worst as usize].error;
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
@@ -170,6 +171,17 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
                 }
             }
             self.insert(worst);
+        }
+    }
+
+    /// Chooses the sample triangle `t` splits at when it covers nodata and holds
+    /// insertable valid samples (chosen only when it is split, see
+    /// [`scan::nodata_candidate`]).
+    fn choose_nodata_candidate(&mut self, t: u32) {
+        let assessment = self.assessments[t as usize];
+        if assessment.error == f64::INFINITY && assessment.candidate == u32::MAX {
+            let v = self.tin.triangle_vertices(t);
+            self.assessments[t as usize].candidate = scan::nodata_candidate(&self.grid, v);
         }
     }
 
