@@ -490,22 +490,35 @@ pub fn assess<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
     assess_within(grid, v, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, v))
 }
 
-/// [`assess`], unless the triangle with corners `v` is large, on a grid with nodata,
-/// and covers none (`None`: its heights need not be read yet). Its validity is read
-/// first, a word of 64 samples at a time: one that meets nodata must split wherever its
-/// error, and one that does not may be rewritten by the splits over nodata before its
-/// error is ever asked for (rectangle-sized triangles over a void's collar at a coarse
-/// tolerance).
-pub fn assess_unless_valid<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Option<Assessment> {
+/// [`assess`], unless the triangle with corners `v` is on a grid with nodata, covers
+/// none, and is large or `cutting` (made by a split over nodata; then whatever its
+/// size, if it holds a sample besides its corners): `None`, its heights need not be read
+/// yet. Its validity is read first, a word of 64 samples at a time: one that meets
+/// nodata must split wherever its error, and one that does not may be rewritten by the
+/// splits over nodata before its error is ever asked for (rectangle-sized triangles
+/// over a void's collar at a coarse tolerance, small ones around holes).
+pub fn assess_unless_valid<H: Height>(
+    grid: &Grid<H>,
+    v: [Vertex; 3],
+    cutting: bool,
+) -> Option<Assessment> {
     let p = v.map(Vertex::point);
-    if grid.no_nodata || twice_area(p) < CHECKED_FIRST {
+    let checked_first = if cutting { 2 } else { CHECKED_FIRST };
+    if grid.no_nodata || twice_area(p) < checked_first {
         return Some(assess(grid, v));
     }
     meets_nodata(grid, p).then(|| assess_with_nodata(grid, v))
 }
 
+/// [`assess`] of a triangle found to cover no nodata by [`assess_unless_valid`] (its
+/// validity is not read again).
+pub fn assess_valid<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
+    read_within(grid, v, f64::INFINITY, false).unwrap_or_else(|| assess(grid, v))
+}
+
 /// Triangles at least this large (twice the area, in samples) on a grid with nodata
-/// have their validity read before their heights ([`assess_unless_valid`]).
+/// have their validity read before their heights ([`assess_unless_valid`]), and any
+/// holding a sample besides its corners while nodata is cut out.
 const CHECKED_FIRST: i64 = 1024;
 
 /// Twice the area of the counter-clockwise triangle `p`.
@@ -539,12 +552,23 @@ fn holds_only_its_corners(p: [(i64, i64); 3]) -> bool {
 /// on the grid's shared sides are not read (fitted beforehand, never candidates).
 #[inline]
 pub fn assess_within<H: Height>(grid: &Grid<H>, v: [Vertex; 3], limit: f64) -> Option<Assessment> {
+    read_within(grid, v, limit, true)
+}
+
+/// [`assess_within`]; rows' validity is read only when `check_validity`.
+#[inline]
+fn read_within<H: Height>(
+    grid: &Grid<H>,
+    v: [Vertex; 3],
+    limit: f64,
+    check_validity: bool,
+) -> Option<Assessment> {
     let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
     for_each_span(p, |y, lo, hi| {
         let row = y as usize * grid.width;
-        if !grid.all_valid(row + lo as usize, row + hi as usize) {
+        if check_validity && !grid.all_valid(row + lo as usize, row + hi as usize) {
             within = false;
             return false;
         }
@@ -982,15 +1006,21 @@ mod tests {
         valid.set(w * h - 1, false);
         let g = grid(w, h, &heights, &valid);
         let clear = corners(&g, [(0, 0), (62, 0), (0, 62)]);
-        assert!(assess_unless_valid(&g, clear).is_none());
+        assert!(assess_unless_valid(&g, clear, false).is_none());
         let over = corners(&g, [(63, 0), (63, 63), (0, 63)]);
-        assert_eq!(assess_unless_valid(&g, over), Some(assess(&g, over)));
+        assert_eq!(assess_unless_valid(&g, over, false), Some(assess(&g, over)));
         assert!(assess(&g, over).touches_void);
         let small = corners(&g, [(0, 0), (8, 0), (0, 8)]);
-        assert_eq!(assess_unless_valid(&g, small), Some(assess(&g, small)));
+        assert_eq!(
+            assess_unless_valid(&g, small, false),
+            Some(assess(&g, small))
+        );
         let whole = bitvec![u64, Lsb0; 1; w * h];
         let g = grid(w, h, &heights, &whole);
-        assert_eq!(assess_unless_valid(&g, clear), Some(assess(&g, clear)));
+        assert_eq!(
+            assess_unless_valid(&g, clear, false),
+            Some(assess(&g, clear))
+        );
     }
 
     #[test]
