@@ -79,6 +79,10 @@ pub struct GreedyMesher<'a, H: Height = f64> {
     /// Whether a triangle budget counts the triangles left out too (the default: the
     /// mesh then never exceeds it; otherwise it may by a few, see [`mesh_grid`]).
     budget_counts_left_out: bool,
+    /// Whether a triangle touched by a split over nodata waits unassessed in the queue
+    /// (as [`UNASSESSED`]) until it is the worst (towards a tolerance only, where
+    /// counts need not be known).
+    defers_cuts: bool,
 }
 
 impl<'a, H: Height> GreedyMesher<'a, H> {
@@ -110,6 +114,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             resolving_flips: false,
             left_out: 0,
             budget_counts_left_out: true,
+            defers_cuts: false,
         }
     }
 
@@ -141,6 +146,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             // Queued triangles within the tolerance stay; new ones are not queued.
             self.settled = self.settled.max(e);
         }
+        self.defers_cuts = matches!(target, GreedyTarget::MaxError(_));
         self.insert_until(target);
         self.assess_unread();
     }
@@ -159,6 +165,10 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             let Some(worst) = worst else {
                 return;
             };
+            if self.assessments[worst as usize].candidate == UNASSESSED.candidate {
+                self.assess_one(worst, true);
+                continue;
+            }
             self.choose_nodata_candidate(worst);
             let error = self.assessments[worst as usize].error;
             let done = match target {
@@ -351,16 +361,25 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             },
         );
         for &t in &touched {
-            let assessment =
-                assess_unless_valid(&self.grid, self.tin.triangle_vertices(t), cutting)
-                    .unwrap_or_else(|| {
-                        self.unread.push(t);
-                        UNREAD
-                    });
-            self.store(t, assessment);
+            match cutting && self.defers_cuts {
+                true => self.store(t, UNASSESSED),
+                false => self.assess_one(t, cutting),
+            }
         }
         touched.clear();
         self.touched = touched;
+    }
+
+    /// Assesses triangle `t` and queues it, or leaves it waiting in
+    /// [`GreedyMesher::unread`] (see [`assess_unless_valid`]; `cutting` after a split
+    /// over nodata).
+    fn assess_one(&mut self, t: u32, cutting: bool) {
+        let assessment = assess_unless_valid(&self.grid, self.tin.triangle_vertices(t), cutting)
+            .unwrap_or_else(|| {
+                self.unread.push(t);
+                UNREAD
+            });
+        self.store(t, assessment);
     }
 }
 
@@ -369,6 +388,16 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
 const UNREAD: Assessment = Assessment {
     error: f64::NAN,
     candidate: u32::MAX,
+    touches_void: false,
+};
+
+/// The assessment of a triangle touched by a split over nodata, not assessed yet
+/// ([`GreedyMesher::defers_cuts`]): queued with an infinite error, so it is assessed
+/// before any triangle over nodata is split after it (in the queue's order, the same
+/// splits happen as if it had been assessed when made); its candidate, no sample's.
+const UNASSESSED: Assessment = Assessment {
+    error: f64::INFINITY,
+    candidate: u32::MAX - 1,
     touches_void: false,
 };
 
