@@ -420,15 +420,16 @@ fn check<H: Height>(grid: &Grid<H>) -> Result<(), GreedyError> {
     }
 }
 
-/// The first valid sample of `grid` whose height is not finite: none when every height
-/// is (one pass the compiler vectorises), else found a validity word at a time.
+/// The first valid sample of `grid` whose height is not finite, read 64 samples (a
+/// validity word) at a time: one pass the compiler vectorises when all 64 heights are
+/// finite, else the valid ones one by one (f32 DEMs hold NaN at nodata).
 fn first_not_finite<H: Height>(grid: &Grid<H>) -> Option<usize> {
     let finite = |h: H| h.into().is_finite();
-    if grid.heights.iter().fold(true, |all, &h| all & finite(h)) {
-        return None;
-    }
     let words = grid.heights.chunks(64).zip(grid.valid);
     words.enumerate().find_map(|(k, (chunk, &valid))| {
+        if chunk.iter().fold(true, |all, &h| all & finite(h)) {
+            return None;
+        }
         let mut bits = valid & (u64::MAX >> (64 - chunk.len()));
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;
