@@ -49,6 +49,10 @@ impl<H: Height> GreedyMesher<'_, H> {
                 error.is_some_and(|error| error > tolerance)
             };
             let neighbour = &self.assessments[(f / 3) as usize];
+            if neighbour.touches_void {
+                // A triangle the flip makes would cover the same nodata.
+                continue;
+            }
             if stays_over(self.assessments[t as usize].candidate)
                 || (neighbour.error > tolerance && stays_over(neighbour.candidate))
             {

@@ -25,7 +25,7 @@ use bitvec::prelude::*;
 
 use super::GridMesh;
 use queue::WorstFirst;
-use scan::{assess, assess_unless_valid, Assessment, Grid, Height};
+use scan::{assess_unless_valid, assess_valid, Assessment, Grid, Height};
 use triangulation::{in_circle, orient, Triangulation, NONE};
 
 /// When insertion stops.
@@ -79,15 +79,24 @@ pub struct GreedyMesher<'a, H: Height = f64> {
     /// Whether a triangle budget counts the triangles left out too (the default: the
     /// mesh then never exceeds it; otherwise it may by a few, see [`mesh_grid`]).
     budget_counts_left_out: bool,
+    /// Whether a triangle touched by a split over nodata waits unassessed in the queue
+    /// (as [`UNASSESSED`]) until it is the worst (towards a tolerance only, where
+    /// counts need not be known).
+    defers_cuts: bool,
 }
 
 impl<'a, H: Height> GreedyMesher<'a, H> {
     /// A mesher of `grid` (the rectangle as two triangles).
     pub fn new(grid: Grid<'a, H>) -> Result<GreedyMesher<'a, H>, GreedyError> {
         check(&grid)?;
+        Ok(GreedyMesher::of_checked(grid))
+    }
+
+    /// [`GreedyMesher::new`] of a grid already checked.
+    fn of_checked(grid: Grid<'a, H>) -> GreedyMesher<'a, H> {
         let mut mesher = GreedyMesher::unassessed(grid);
         mesher.assess_touched();
-        Ok(mesher)
+        mesher
     }
 
     /// A mesher of a checked `grid` whose touched triangles (the rectangle's two) are
@@ -105,6 +114,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             resolving_flips: false,
             left_out: 0,
             budget_counts_left_out: true,
+            defers_cuts: false,
         }
     }
 
@@ -136,6 +146,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             // Queued triangles within the tolerance stay; new ones are not queued.
             self.settled = self.settled.max(e);
         }
+        self.defers_cuts = matches!(target, GreedyTarget::MaxError(_));
         self.insert_until(target);
         self.assess_unread();
     }
@@ -154,6 +165,11 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             let Some(worst) = worst else {
                 return;
             };
+            if self.assessments[worst as usize].candidate == UNASSESSED.candidate {
+                self.assess_one(worst, true);
+                continue;
+            }
+            self.choose_nodata_candidate(worst);
             let error = self.assessments[worst as usize].error;
             let done = match target {
                 GreedyTarget::MaxError(e) => error <= e,
@@ -170,6 +186,17 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
                 }
             }
             self.insert(worst);
+        }
+    }
+
+    /// Chooses the sample triangle `t` splits at when it covers nodata and holds
+    /// insertable valid samples (chosen only when it is split, see
+    /// [`scan::nodata_candidate`]).
+    fn choose_nodata_candidate(&mut self, t: u32) {
+        let assessment = self.assessments[t as usize];
+        if assessment.error == f64::INFINITY && assessment.candidate == u32::MAX {
+            let v = self.tin.triangle_vertices(t);
+            self.assessments[t as usize].candidate = scan::nodata_candidate(&self.grid, v);
         }
     }
 
@@ -230,8 +257,9 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
     fn insert(&mut self, t: u32) {
         let (x, y) = self.candidate_point(t);
         let side = self.side_holding(t);
+        let cutting = self.assessments[t as usize].error == f64::INFINITY;
         self.insert_point((x, y), side.ok_or(t));
-        self.assess_touched();
+        self.assess_touched_after(cutting);
     }
 
     /// Inserts a vertex at grid point `(x, y)` on the side `Ok(half-edge)` or inside the
@@ -302,7 +330,7 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         for &t in &unread {
             // Rewritten and assessed since, when not NaN.
             if self.assessments[t as usize].error.is_nan() {
-                let assessment = assess(&self.grid, self.tin.triangle_vertices(t));
+                let assessment = assess_valid(&self.grid, self.tin.triangle_vertices(t));
                 self.store(t, assessment);
             }
         }
@@ -314,6 +342,13 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
     /// nodata on a grid with nodata waits in [`GreedyMesher::unread`] (NaN error, not
     /// queued).
     fn assess_touched(&mut self) {
+        self.assess_touched_after(false);
+    }
+
+    /// [`GreedyMesher::assess_touched`] after a split over nodata when `cutting`: then
+    /// any triangle covering no nodata waits, whatever its size (see
+    /// [`assess_unless_valid`]).
+    fn assess_touched_after(&mut self, cutting: bool) {
         let mut touched = std::mem::take(&mut self.touched);
         touched.sort_unstable();
         touched.dedup();
@@ -326,15 +361,25 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             },
         );
         for &t in &touched {
-            let assessment = assess_unless_valid(&self.grid, self.tin.triangle_vertices(t))
-                .unwrap_or_else(|| {
-                    self.unread.push(t);
-                    UNREAD
-                });
-            self.store(t, assessment);
+            match cutting && self.defers_cuts {
+                true => self.store(t, UNASSESSED),
+                false => self.assess_one(t, cutting),
+            }
         }
         touched.clear();
         self.touched = touched;
+    }
+
+    /// Assesses triangle `t` and queues it, or leaves it waiting in
+    /// [`GreedyMesher::unread`] (see [`assess_unless_valid`]; `cutting` after a split
+    /// over nodata).
+    fn assess_one(&mut self, t: u32, cutting: bool) {
+        let assessment = assess_unless_valid(&self.grid, self.tin.triangle_vertices(t), cutting)
+            .unwrap_or_else(|| {
+                self.unread.push(t);
+                UNREAD
+            });
+        self.store(t, assessment);
     }
 }
 
@@ -343,6 +388,16 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
 const UNREAD: Assessment = Assessment {
     error: f64::NAN,
     candidate: u32::MAX,
+    touches_void: false,
+};
+
+/// The assessment of a triangle touched by a split over nodata, not assessed yet
+/// ([`GreedyMesher::defers_cuts`]): queued with an infinite error, so it is assessed
+/// before any triangle over nodata is split after it (in the queue's order, the same
+/// splits happen as if it had been assessed when made); its candidate, no sample's.
+const UNASSESSED: Assessment = Assessment {
+    error: f64::INFINITY,
+    candidate: u32::MAX - 1,
     touches_void: false,
 };
 
@@ -359,10 +414,32 @@ fn check<H: Height>(grid: &Grid<H>) -> Result<(), GreedyError> {
     if grid.heights.len() != n || grid.valid.len() * 64 < n {
         return Err(GreedyError::SizeMismatch(grid.heights.len(), n));
     }
-    match (0..n).find(|&s| grid.is_valid(s) && !grid.heights[s].into().is_finite()) {
+    match first_not_finite(grid) {
         Some(s) => Err(GreedyError::NotFinite(s)),
         None => Ok(()),
     }
+}
+
+/// The first valid sample of `grid` whose height is not finite, read 64 samples (a
+/// validity word) at a time: one pass the compiler vectorises when all 64 heights are
+/// finite, else the valid ones one by one (f32 DEMs hold NaN at nodata).
+fn first_not_finite<H: Height>(grid: &Grid<H>) -> Option<usize> {
+    let finite = |h: H| h.into().is_finite();
+    let words = grid.heights.chunks(64).zip(grid.valid);
+    words.enumerate().find_map(|(k, (chunk, &valid))| {
+        if chunk.iter().fold(true, |all, &h| all & finite(h)) {
+            return None;
+        }
+        let mut bits = valid & (u64::MAX >> (64 - chunk.len()));
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            if !finite(chunk[j]) {
+                return Some(64 * k + j);
+            }
+            bits &= bits - 1;
+        }
+        None
+    })
 }
 
 /// The greedy mesh of `heights` (`valid` marks valid samples) meeting `target`. With
@@ -390,7 +467,8 @@ pub fn greedy_mesh(
 /// `heights` as `f32`, when every valid one converts exactly (nodata may hold anything).
 fn exact_f32(heights: &[f64], valid: &BitSlice<u64, Lsb0>) -> Option<Vec<f32>> {
     let narrow: Vec<f32> = heights.iter().map(|&h| h as f32).collect();
-    let exact = |(&h, &n): (&f64, &f32)| f64::from(n) == h;
+    // NaN narrows to NaN (nodata in f32 DEMs; a valid one is refused either way).
+    let exact = |(&h, &n): (&f64, &f32)| f64::from(n) == h || h.is_nan();
     let all_exact = heights.iter().zip(&narrow).all(exact)
         || heights
             .iter()
@@ -406,40 +484,40 @@ fn mesh_grid<H: Height>(
     target: GreedyTarget,
     optimise: Option<usize>,
 ) -> Result<GridMesh, GreedyError> {
+    check(&grid)?;
     if let (GreedyTarget::MaxError(e), Some(passes)) = (target, optimise) {
         if parts::splits(grid.width, grid.height) {
-            check(&grid)?;
             if let Some(mesh) = parts::mesh_in_parts(&grid, e, passes) {
                 return Ok(mesh);
             }
         }
     }
-    let mesh = mesh_in_one_piece(grid, target, optimise, false)?;
-    match target {
+    let mesh = mesh_in_one_piece(grid, target, optimise, false);
+    Ok(match target {
         // Triangles covering nodata that the budget did not count became triangles of
         // the mesh (rare): count them all, so the mesh keeps within the budget.
         GreedyTarget::Triangles(n) if mesh.triangles.len() > n => {
             mesh_in_one_piece(grid, target, optimise, true)
         }
-        _ => Ok(mesh),
-    }
+        _ => mesh,
+    })
 }
 
-/// [`mesh_grid`] in one piece; a triangle budget counts the triangles left out over
-/// nodata when `count_left_out`.
+/// [`mesh_grid`] in one piece of a checked grid; a triangle budget counts the
+/// triangles left out over nodata when `count_left_out`.
 fn mesh_in_one_piece<H: Height>(
     grid: Grid<H>,
     target: GreedyTarget,
     optimise: Option<usize>,
     count_left_out: bool,
-) -> Result<GridMesh, GreedyError> {
-    let mut mesher = GreedyMesher::new(grid)?;
+) -> GridMesh {
+    let mut mesher = GreedyMesher::of_checked(grid);
     mesher.budget_counts_left_out = count_left_out;
     if optimise.is_some() {
         mesher = mesher.with_resolving_flips();
     }
     mesher.run(target);
-    Ok(match optimise {
+    match optimise {
         Some(passes) => {
             let limit = match target {
                 GreedyTarget::MaxError(e) => Some(e),
@@ -448,7 +526,7 @@ fn mesh_in_one_piece<H: Height>(
             mesher.optimise_flips(limit, passes).0
         }
         None => mesher.mesh(),
-    })
+    }
 }
 
 #[cfg(test)]
@@ -661,6 +739,8 @@ mod tests {
         assert_eq!(exact_f32(&tenth, &valid), None);
         valid.set(1, false);
         assert!(exact_f32(&tenth, &valid).is_some());
+        let nan = [1.0, f64::NAN, 2.0];
+        assert!(exact_f32(&nan, &bitvec![u64, Lsb0; 1; 3]).is_some());
     }
 
     #[test]
@@ -678,5 +758,12 @@ mod tests {
             None,
         );
         assert_eq!(nan, Err(GreedyError::NotFinite(1)));
+        let (w, h) = (13, 10);
+        let mut heights = vec![1.0; w * h];
+        let mut valid = bitvec![u64, Lsb0; 1; w * h];
+        (heights[5], heights[100]) = (f64::NAN, f64::INFINITY);
+        valid.set(5, false);
+        let inf = greedy_mesh(w, h, &heights, &valid, GreedyTarget::MaxError(1.0), None);
+        assert_eq!(inf, Err(GreedyError::NotFinite(100)));
     }
 }
