@@ -5,7 +5,7 @@
 //! The readers are private to [`crate::dem`] and read from files, so the harness writes
 //! the bytes to a temporary file (in [`std::env::temp_dir`]; point `TMPDIR` at a RAM disk
 //! such as `/dev/shm` for speed) with the format's extension and calls
-//! [`read_dem`](crate::dem::read_dem) on it.
+//! [`read_dem`] on it.
 
 use std::io::Write;
 

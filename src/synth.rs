@@ -199,7 +199,7 @@ pub fn write_tiled_geotiff(
 }
 
 /// Writes `terrain` as a `width × height` i16 GeoTIFF at `path` in strips of
-/// [`ROWS_PER_STRIP`] rows, otherwise as [`write_tiled_geotiff`]: one strip in memory at a
+/// `ROWS_PER_STRIP` rows, otherwise as [`write_tiled_geotiff`]: one strip in memory at a
 /// time, atomically.
 pub fn write_geotiff(
     path: &Path,

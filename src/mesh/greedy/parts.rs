@@ -1,6 +1,6 @@
 //! A grid meshed towards a tolerance as independent rectangular parts, on every core.
 //!
-//! The grid is cut into parts about [`PART_SIDE`] samples a side (the cuts depend on its
+//! The grid is cut into parts about `PART_SIDE` samples a side (the cuts depend on its
 //! size only, never on the thread count, so the mesh is the same on any machine). The
 //! lines two parts share (seams) are fitted first, in one dimension: a seam's samples
 //! get the vertices that bring its linear interpolation within the tolerance (split at
@@ -59,8 +59,8 @@ fn cuts(n: usize) -> Vec<usize> {
 /// The mesh of `grid` with every valid sample within `tolerance` (nodata left out as
 /// in one piece), the parts meshed in parallel, each with `passes` error-lowering
 /// passes; `None` when the seams need too few vertices for the split to pay (see
-/// [`dense_enough`]) or a part would strand a valid seam sample (see
-/// [`GreedyMesher::strands_shared_samples`]).
+/// `dense_enough`) or a part would strand a valid seam sample (see
+/// `GreedyMesher::strands_shared_samples`).
 pub fn mesh_in_parts<H: Height>(grid: &Grid<H>, tolerance: f64, passes: usize) -> Option<GridMesh> {
     let parts = layout(grid, tolerance * (1.0 - SEAM_MARGIN));
     if !dense_enough(&parts) {

@@ -3,8 +3,8 @@
 //! insert), its squared error (what a data-dependent flip compares), or whether it is
 //! within a tolerance. Spans are found exactly and without a division per row
 //! ([`for_each_span`]: corners sorted by row, the long side against the two short
-//! ones); a span of valid samples is read as a flat slice ([`row_worst`],
-//! [`row_errors`]); only rows that meet nodata are read sample by sample. Heights may
+//! ones); a span of valid samples is read as a flat slice (`row_worst`,
+//! `row_errors`); only rows that meet nodata are read sample by sample. Heights may
 //! be stored as `f32` ([`Height`]); errors are always computed in `f64`.
 
 use super::triangulation::{orient, Vertex};
@@ -655,7 +655,7 @@ fn assess_with_nodata<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
 }
 
 /// The sample a triangle over nodata holding insertable valid samples (infinite
-/// error, see [`assess_with_nodata`]) splits at, read row span by row span (sample by
+/// error, see `assess_with_nodata`) splits at, read row span by row span (sample by
 /// sample only where a span mixes valid samples and nodata): the one farthest towards
 /// its nodata (along the line from its valid samples' centroid to its nodata
 /// samples'), preferably one next to nodata: beyond a chord of a void's outline, the

@@ -2,7 +2,7 @@
 //! top-left corner the sample is; bits 0–2 hold the direction (north, east, south, west)
 //! to the next sample on the way to the vertex that absorbed this one, or 0 when the
 //! sample was never merged. With the height raster it is the whole simplified mesh:
-//! [`FlagMap::extract_triangles`] is the paper's extraction.
+//! [`super::extract_mesh`] is the paper's extraction.
 
 /// Which diagonal splits a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

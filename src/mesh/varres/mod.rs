@@ -4,7 +4,7 @@
 //! removed is recorded with the error at its birth and death, so one simplification
 //! gives the mesh at any error, or a view-dependent mesh, by a query.
 //!
-//! Stages, one module each: [`topology`] (the live mesh), [`classify`] (boundary,
+//! Stages, one module each: [`topology`] (the live mesh), [`classify`](mod@classify) (boundary,
 //! peak, ridge, plain: where a vertex may move), [`error`] (the paper's average-plane
 //! metric and the distance-to-plane metric it is compared with), [`collapse`]
 //! (validity, cost, and the collapse with its samples handed on), [`history`] (births
