@@ -188,8 +188,45 @@ impl CoefficientLayout {
     }
 }
 
+/// A coefficient as a decoder stores it: `i32`, or `i16` for streams whose coefficients
+/// all fit (see [`Decoder::try_run_from`]).
+pub trait Coefficient: Copy + Default + Send + std::fmt::Debug + 'static {
+    /// Highest own plane whose magnitudes (below 2^(plane + 1)) the type holds.
+    const MAX_PLANE: u32;
+    /// The value as an `i32`.
+    fn get(self) -> i32;
+    /// `v` stored (the caller knows it fits).
+    fn put(v: i32) -> Self;
+}
+
+impl Coefficient for i32 {
+    const MAX_PLANE: u32 = MAX_COEFFICIENT_PLANE;
+    #[inline(always)]
+    fn get(self) -> i32 {
+        self
+    }
+    #[inline(always)]
+    fn put(v: i32) -> i32 {
+        v
+    }
+}
+
+impl Coefficient for i16 {
+    const MAX_PLANE: u32 = 14;
+    #[inline(always)]
+    fn get(self) -> i32 {
+        i32::from(self)
+    }
+    #[inline(always)]
+    fn put(v: i32) -> i16 {
+        v as i16
+    }
+}
+
 /// What differs between encoding and decoding a scan.
 trait Side {
+    /// How the known coefficients are stored.
+    type Value: Coefficient;
     /// Is coefficient `i` significant at own plane `p`?
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool;
     /// Is coefficient `i` negative?
@@ -214,7 +251,7 @@ trait Side {
     fn known_above(&self, i: usize, p: u32) -> u32;
     /// Every coefficient as far as it is known to both sides: the magnitude bits decided
     /// so far with their sign (0 while insignificant).
-    fn known(&self) -> &[i32];
+    fn known(&self) -> &[Self::Value];
 }
 
 /// Per-coefficient flags stored with a one-sample border of zeros on every side, so
@@ -782,6 +819,7 @@ impl<B: BitSink> EncoderSide<'_, B> {
 }
 
 impl<B: BitSink> Side for EncoderSide<'_, B> {
+    type Value = i32;
     #[inline]
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i].unsigned_abs() >> p != 0;
@@ -1081,12 +1119,15 @@ fn measuring_side<'a, B: BitSink>(
 }
 
 /// Decoder side: fills signed magnitudes bit by bit.
-struct DecoderSide<'a> {
+struct DecoderSide<'a, V> {
     source: ArithmeticDecoder<'a>,
-    values: Vec<i32>,
+    values: Vec<V>,
+    /// Whether a coefficient became significant above [`Coefficient::MAX_PLANE`].
+    outgrown: bool,
 }
 
-impl Side for DecoderSide<'_> {
+impl<V: Coefficient> Side for DecoderSide<'_, V> {
+    type Value = V;
     #[inline]
     fn significance(&mut self, _i: usize, _p: u32, model: &mut BitModel) -> bool {
         self.source.decode(model)
@@ -1114,33 +1155,34 @@ impl Side for DecoderSide<'_> {
     #[inline]
     fn commit_significant(&mut self, i: usize, _band: usize, p: u32, negative: bool) {
         let m = 1i32 << p;
-        self.values[i] = if negative { -m } else { m };
+        self.outgrown |= p > V::MAX_PLANE;
+        self.values[i] = V::put(if negative { -m } else { m });
     }
     #[inline]
     fn commit_refinement(&mut self, i: usize, _band: usize, p: u32, bit: bool) {
         if bit {
-            let v = self.values[i];
-            self.values[i] = if v < 0 { v - (1 << p) } else { v + (1 << p) };
+            let v = self.values[i].get();
+            self.values[i] = V::put(if v < 0 { v - (1 << p) } else { v + (1 << p) });
         }
     }
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
-        self.values[i] < 0
+        self.values[i].get() < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
-        self.values[i].unsigned_abs() >> (p + 1)
+        self.values[i].get().unsigned_abs() >> (p + 1)
     }
     #[inline]
-    fn known(&self) -> &[i32] {
+    fn known(&self) -> &[V] {
         &self.values
     }
 }
 
-/// The state of a decode: the bits known of every coefficient.
+/// The state of a decode: the bits known of every coefficient, stored as `V`.
 #[derive(Debug, Clone)]
-pub struct Decoder {
-    values: Vec<i32>,
+pub struct Decoder<V = i32> {
+    values: Vec<V>,
     grid: FlagGrid,
     width: usize,
     /// Passes decoded completely.
@@ -1175,10 +1217,27 @@ impl Decoder {
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Decoder {
+        // Every own plane (≤ MAX_COEFFICIENT_PLANE) fits an i32.
+        Decoder::try_run_from(layout, coder, source, top_plane, max_passes)
+            .unwrap_or_else(|| unreachable!("an i32 holds every coefficient plane"))
+    }
+}
+
+impl<V: Coefficient> Decoder<V> {
+    /// As [`Decoder::run_from`], storing the coefficients as `V`: `None` (at the end of
+    /// the first pass that shows it) when a coefficient does not fit in a `V`.
+    pub fn try_run_from(
+        layout: &CoefficientLayout,
+        coder: Coder,
+        source: ArithmeticDecoder<'_>,
+        top_plane: Option<u32>,
+        max_passes: Option<u32>,
+    ) -> Option<Decoder<V>> {
         let n_coefficients = layout.len();
         let mut side = DecoderSide {
             source,
-            values: vec![0; n_coefficients],
+            values: vec![V::default(); n_coefficients],
+            outgrown: false,
         };
         let mut grid = FlagGrid::new(layout, coder);
         let mut contexts = Contexts::new(coder, ContextChoice::ALL);
@@ -1190,7 +1249,11 @@ impl Decoder {
                     complete = false;
                     break;
                 }
-                match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
+                let end = scan_pass(layout, &mut grid, &mut contexts, &mut side, n);
+                if side.outgrown {
+                    return None;
+                }
+                match end {
                     ScanEnd::Finished => {
                         passes_completed += 1;
                         // The inverse transform comes last.
@@ -1204,15 +1267,42 @@ impl Decoder {
                 }
             }
         }
-        Decoder {
+        Some(Decoder {
             values: side.values,
             grid,
             width: layout.width,
             passes_completed,
             complete,
-        }
+        })
     }
 
+    /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
+    /// are known.
+    pub fn integer_coefficients(self) -> Vec<V> {
+        let Decoder {
+            values,
+            grid,
+            width,
+            ..
+        } = self;
+        let mut out = values;
+        for (i, v) in out.iter_mut().enumerate() {
+            let (x, y) = (i % width, i / width);
+            let f = grid.flags[grid.at(x, y)];
+            if f & SIG == 0 {
+                *v = V::put(0);
+                continue;
+            }
+            let p = (f >> PLANE_SHIFT) as u32;
+            let extra = (((1u64 << p) - 1) / 2) as i32;
+            let w = v.get();
+            *v = V::put(if w < 0 { w - extra } else { w + extra });
+        }
+        out
+    }
+}
+
+impl Decoder {
     /// The per-node significance map of what was decoded (see
     /// [`crate::significance`]): built from the coefficients' leading bits, which are the
     /// planes at which they became significant.
@@ -1246,30 +1336,6 @@ impl Decoder {
                 (if v < 0 { -magnitude } else { magnitude }) as f32
             })
             .collect()
-    }
-
-    /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
-    /// are known.
-    pub fn integer_coefficients(self) -> Vec<i32> {
-        let Decoder {
-            values,
-            grid,
-            width,
-            ..
-        } = self;
-        let mut out = values;
-        for (i, v) in out.iter_mut().enumerate() {
-            let (x, y) = (i % width, i / width);
-            let f = grid.flags[grid.at(x, y)];
-            if f & SIG == 0 {
-                *v = 0;
-                continue;
-            }
-            let p = (f >> PLANE_SHIFT) as u32;
-            let extra = (((1u64 << p) - 1) / 2) as i32;
-            *v = if *v < 0 { *v - extra } else { *v + extra };
-        }
-        out
     }
 }
 
@@ -1344,6 +1410,47 @@ mod tests {
         );
         assert!(dec.complete);
         assert_eq!(dec.integer_coefficients(), coefficients);
+    }
+
+    /// The decoder of `bytes` (a prefix when not `complete`) storing `V`.
+    fn decode_as<V: Coefficient>(
+        layout: &CoefficientLayout,
+        bytes: &[u8],
+        complete: bool,
+        top: Option<u32>,
+    ) -> Option<Decoder<V>> {
+        let source = ArithmeticDecoder::new(bytes, complete);
+        Decoder::try_run_from(layout, Coder::default(), source, top, None)
+    }
+
+    #[test]
+    fn i16_decoder_matches_i32_and_declines_what_does_not_fit() {
+        let (w, h) = (48, 40);
+        let layout = layout_for(w, h, 3, |s| s.level);
+        // Magnitudes up to 32767 fit; one of 32768 (plane 15) does not.
+        let mut c = pseudo_random(w * h, 11, 32767);
+        c[5] = -32767;
+        let top = top_plane(&layout, &c);
+        let full = unit_weight_encode(&layout, &c, None);
+        for cut in [full.bytes.len(), 900, 300] {
+            let bytes = &full.bytes[..cut];
+            let complete = cut == full.bytes.len();
+            let wide = decode_as::<i32>(&layout, bytes, complete, top).unwrap();
+            let narrow = decode_as::<i16>(&layout, bytes, complete, top).unwrap();
+            assert_eq!(narrow.passes_completed, wide.passes_completed);
+            let narrow: Vec<i32> = narrow
+                .integer_coefficients()
+                .into_iter()
+                .map(i32::from)
+                .collect();
+            assert_eq!(narrow, wide.integer_coefficients(), "{cut} bytes");
+        }
+        c[5] = 32768;
+        let top = top_plane(&layout, &c);
+        let full = unit_weight_encode(&layout, &c, None);
+        assert!(decode_as::<i16>(&layout, &full.bytes, true, top).is_none());
+        let wide = decode_as::<i32>(&layout, &full.bytes, true, top).unwrap();
+        assert_eq!(wide.integer_coefficients(), c);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! coefficient values, the parent).
 
 use super::priors::primed;
-use super::{FlagGrid, ParentRow, Side, SIG};
+use super::{Coefficient, FlagGrid, ParentRow, Side, SIG};
 use crate::entropy::BitModel;
 
 /// Which context information the models are selected by (all of it in every stream; the
@@ -237,7 +237,7 @@ pub(super) fn dominant_contexts<S: Side>(
                 0
             };
             let parent = parent_flags.map_or(0, |(pr, px, _)| {
-                let known = side.known()[pr.index + px].unsigned_abs();
+                let known = side.known()[pr.index + px].get().unsigned_abs();
                 1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
             });
             let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
@@ -249,11 +249,11 @@ pub(super) fn dominant_contexts<S: Side>(
 /// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
 /// ones counted twice.
 #[inline]
-fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
+fn neighbour_sum<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> u64 {
     // The grid's rows are the coefficient rows with a border column on each side.
     let w = grid.stride - 2;
     let i = at.index;
-    let m = |j: usize| u64::from(known[j].unsigned_abs());
+    let m = |j: usize| u64::from(known[j].get().unsigned_abs());
     if at.interior {
         return 2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
             + m(i - w - 1)
@@ -283,10 +283,10 @@ fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
 
 /// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
 #[inline]
-pub(super) fn refinement_context(
+pub(super) fn refinement_context<V: Coefficient>(
     contexts: &Contexts,
     grid: &FlagGrid,
-    known: &[i32],
+    known: &[V],
     at: At,
     p: u32,
     age: usize,

@@ -8,7 +8,7 @@ use crate::error::CodecError;
 use crate::ezw::{CoefficientLayout, Decoder};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{integer_samples, rescale_97, to_samples};
+use crate::quantize::{integer_samples, rescale_97, to_samples, whole_offset};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
@@ -173,11 +173,14 @@ fn decode_stream(
     let payload_present = sections.payload_check.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
     let payload_complete = payload_present && !header.payload_truncated;
-    let (decoder, significance) = run_zerotree(&header, sections, payload_complete, options);
-    let passes_decoded = decoder.passes_completed;
-    let ezw_complete = decoder.complete && payload_complete;
     let mask = sections.mask.as_ref().map(Mask::as_bitslice);
-    let mut samples = reconstruct(&header, decoder, mask);
+    let Reconstruction {
+        mut samples,
+        passes_decoded,
+        complete,
+        significance,
+    } = reconstruction(&header, sections, payload_complete, options, mask);
+    let ezw_complete = complete && payload_complete;
     progress::report(Stage::Transform, 1, 1);
     let residuals_complete =
         apply_residual_section(&header, sections, &mut samples, mask, ezw_complete);
@@ -205,36 +208,98 @@ fn decode_stream(
     })
 }
 
-/// Runs the zerotree decoder over the payload (as far as `options` let it), and takes
-/// the significance map from it when `options` ask for one.
-fn run_zerotree(
+/// What the zerotree decode and the inverse transform made of a stream.
+struct Reconstruction {
+    samples: Samples,
+    passes_decoded: u32,
+    /// Whether the zerotree decode ran through plane 0.
+    complete: bool,
+    significance: Option<SignificanceMap>,
+}
+
+/// Decodes the payload and inverts the transform: in `i16` when
+/// [`narrow_reconstruction`] can, else in `i32`. Both give the same samples.
+fn reconstruction(
     header: &Header,
     sections: &StreamSections,
     payload_complete: bool,
     options: &DecodeOptions,
-) -> (Decoder, Option<SignificanceMap>) {
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Reconstruction {
     let (width, height) = (header.width as usize, header.height as usize);
     let subbands = wavelet::subbands(width, height, header.levels as u32);
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
     let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
-    let source = ArithmeticDecoder::new_framed(
-        sections.payload_framed,
-        sections.payload_check.data_len,
-        CHUNK,
-        4,
-        payload_complete,
-    );
+    let narrow = header.sample_type.bytes() <= 2
+        && header.wavelet == Wavelet::Int53
+        && whole_offset(header.mapping)
+        && !options.significance_map;
+    if narrow {
+        let source = payload_source(sections, payload_complete);
+        if let Some(done) = narrow_reconstruction(&layout, header, source, options, mask) {
+            return done;
+        }
+    }
     let decoder = Decoder::run_from(
         &layout,
         header.coder,
-        source,
+        payload_source(sections, payload_complete),
         header.top_plane.map(u32::from),
         options.max_passes,
     );
     let significance = options
         .significance_map
         .then(|| decoder.significance(&layout));
-    (decoder, significance)
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    Reconstruction {
+        samples: reconstruct(header, decoder, mask),
+        passes_decoded,
+        complete,
+        significance,
+    }
+}
+
+/// The 5/3 decode of a stream of 1- or 2-byte integer samples (whole offset) with
+/// coefficients and inverse transform in `i16`, half the memory of `i32`, the samples
+/// made in place: `None` (after the first pass that shows it, or after the inverse) when
+/// a coefficient or a value of the inverse transform does not fit, for an `i32` decode.
+fn narrow_reconstruction(
+    layout: &CoefficientLayout,
+    header: &Header,
+    source: ArithmeticDecoder<'_>,
+    options: &DecodeOptions,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Option<Reconstruction> {
+    let top_plane = header.top_plane.map(u32::from);
+    let decoder =
+        Decoder::<i16>::try_run_from(layout, header.coder, source, top_plane, options.max_passes)?;
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    let mut coefficients = decoder.integer_coefficients();
+    let (width, height) = (header.width as usize, header.height as usize);
+    if !wavelet::inverse_53_i16(&mut coefficients, width, height, header.levels as u32) {
+        return None;
+    }
+    let (mapping, nodata) = (header.mapping, header.nodata);
+    Some(Reconstruction {
+        samples: integer_samples(header.sample_type, coefficients, mapping, mask, nodata),
+        passes_decoded,
+        complete,
+        significance: None,
+    })
+}
+
+/// The range decoder over the stream's payload, read in place.
+fn payload_source<'a>(
+    sections: &StreamSections<'a>,
+    payload_complete: bool,
+) -> ArithmeticDecoder<'a> {
+    ArithmeticDecoder::new_framed(
+        sections.payload_framed,
+        sections.payload_check.data_len,
+        CHUNK,
+        4,
+        payload_complete,
+    )
 }
 
 /// The decoded coefficients through the inverse transform to samples. In place: the
