@@ -108,7 +108,8 @@ fn index_limit(options: &DecodeOptions) -> u64 {
 /// Working memory a decode needs, in bytes (used for the limit check).
 fn decode_memory(header: &Header) -> u64 {
     let n = header.sample_count();
-    // coefficients (4, reused for the output) + flags (1) + mask (1 when present).
+    // coefficients (4 at most, reused for the output) + the scans' bitmaps (3 bits, counted
+    // as 1) + mask (1 when present).
     n * (5 + (header.mask_len > 0) as u64)
 }
 
