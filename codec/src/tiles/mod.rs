@@ -534,7 +534,8 @@ pub(crate) fn decode_layout(
     let workers = Workers::new(options.threads)?;
     check_memory(layout, &window, options, workers.count())?;
     let lengths = tile_lengths(layout, options.max_bytes)?;
-    let mut output = decode::Output::new(header, window);
+    // Made once the first tiles are decoded: not beside their decoders.
+    let mut output = None;
     for row in 0..layout.grid.rows() {
         let wanted: Vec<usize> = layout
             .grid
@@ -549,10 +550,12 @@ pub(crate) fn decode_layout(
             fetched.push((k, bytes));
         }
         let decoded = workers.map(0..fetched.len(), |i| decode::tile(&fetched[i].1, options));
+        let output = output.get_or_insert_with(|| decode::Output::new(header, window));
         for ((k, bytes), result) in fetched.iter().zip(decoded) {
             output.place(*k, layout, bytes.len() as u64, result, options.strict)?;
         }
     }
+    let output = output.unwrap_or_else(|| decode::Output::new(header, window));
     Ok(output.finish(layout))
 }
 
