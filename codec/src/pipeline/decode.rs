@@ -61,13 +61,27 @@ pub fn decode_window(
     window: Option<Window>,
     options: &DecodeOptions,
 ) -> Result<Decoded, CodecError> {
+    decode_window_then(source, window, options, &mut || {})
+}
+
+/// [`decode_window`], calling `before_output` once a tiled file's tiles are decoded,
+/// before the window's samples are allocated (a writer can finish the previous window
+/// there, so that the two are never held together); of a single stream, once it is
+/// decoded.
+pub fn decode_window_then(
+    source: &mut impl ByteSource,
+    window: Option<Window>,
+    options: &DecodeOptions,
+    before_output: &mut dyn FnMut(),
+) -> Result<Decoded, CodecError> {
     if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
-        return crate::tiles::decode_layout(source, &layout, window, options);
+        return crate::tiles::decode_layout(source, &layout, window, options, before_output);
     }
     let data = source
         .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
         .map_err(|e| CodecError::Read(e.to_string()))?;
     let mut decoded = decode(&data, options)?;
+    before_output();
     if let Some(w) = window {
         decoded.raster = crop_to_window(&decoded.raster, w)?;
     }
@@ -144,7 +158,7 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
                 "significance maps come from single-stream files, not tiled ones".into(),
             ));
         }
-        return crate::tiles::decode_layout(&mut data, &layout, None, options);
+        return crate::tiles::decode_layout(&mut data, &layout, None, options, &mut || {});
     }
     let data = match options.max_bytes {
         Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],

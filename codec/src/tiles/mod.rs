@@ -509,11 +509,14 @@ fn cut_recoded(
 /// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
 /// it needs: the header and index, then for each tile the window touches the prefix
 /// [`allocate`] gives it under `options.max_bytes` (all of it without a budget).
+/// `before_output` runs once, before the window's samples are allocated (after the first
+/// tiles are decoded).
 pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
     window: Option<Window>,
     options: &DecodeOptions,
+    before_output: &mut dyn FnMut(),
 ) -> Result<Decoded, CodecError> {
     let header = &layout.header;
     let whole = Window {
@@ -550,12 +553,18 @@ pub(crate) fn decode_layout(
             fetched.push((k, bytes));
         }
         let decoded = workers.map(0..fetched.len(), |i| decode::tile(&fetched[i].1, options));
-        let output = output.get_or_insert_with(|| decode::Output::new(header, window));
+        let output = output.get_or_insert_with(|| {
+            before_output();
+            decode::Output::new(header, window)
+        });
         for ((k, bytes), result) in fetched.iter().zip(decoded) {
             output.place(*k, layout, bytes.len() as u64, result, options.strict)?;
         }
     }
-    let output = output.unwrap_or_else(|| decode::Output::new(header, window));
+    let output = output.unwrap_or_else(|| {
+        before_output();
+        decode::Output::new(header, window)
+    });
     Ok(output.finish(layout))
 }
 
