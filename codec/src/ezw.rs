@@ -53,10 +53,6 @@ pub use contexts::{Coder, ContextChoice, Contexts};
 #[cfg(feature = "research")]
 pub use training::{tally_priors, PriorTally, PRIOR_WINDOW};
 
-/// Flag bits kept per coefficient during a scan.
-const SIG: u8 = 1; // significant
-const PLANE_SHIFT: u32 = 3; // bits 3..8: lowest plane known for a significant coefficient
-
 /// Highest global plane a stream may use (descendant plane masks are `u64`).
 pub const MAX_PLANE: u32 = 62;
 /// Highest bit-plane of a coefficient itself (magnitudes are below 2^31).
@@ -188,8 +184,45 @@ impl CoefficientLayout {
     }
 }
 
+/// A coefficient as a decoder stores it: `i32`, or `i16` for streams whose coefficients
+/// all fit (see [`Decoder::try_run_from`]).
+pub trait Coefficient: Copy + Default + Send + std::fmt::Debug + 'static {
+    /// Highest own plane whose magnitudes (below 2^(plane + 1)) the type holds.
+    const MAX_PLANE: u32;
+    /// The value as an `i32`.
+    fn get(self) -> i32;
+    /// `v` stored (the caller knows it fits).
+    fn put(v: i32) -> Self;
+}
+
+impl Coefficient for i32 {
+    const MAX_PLANE: u32 = MAX_COEFFICIENT_PLANE;
+    #[inline(always)]
+    fn get(self) -> i32 {
+        self
+    }
+    #[inline(always)]
+    fn put(v: i32) -> i32 {
+        v
+    }
+}
+
+impl Coefficient for i16 {
+    const MAX_PLANE: u32 = 14;
+    #[inline(always)]
+    fn get(self) -> i32 {
+        i32::from(self)
+    }
+    #[inline(always)]
+    fn put(v: i32) -> i16 {
+        v as i16
+    }
+}
+
 /// What differs between encoding and decoding a scan.
 trait Side {
+    /// How the known coefficients are stored.
+    type Value: Coefficient;
     /// Is coefficient `i` significant at own plane `p`?
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool;
     /// Is coefficient `i` negative?
@@ -214,19 +247,19 @@ trait Side {
     fn known_above(&self, i: usize, p: u32) -> u32;
     /// Every coefficient as far as it is known to both sides: the magnitude bits decided
     /// so far with their sign (0 while insignificant).
-    fn known(&self) -> &[i32];
+    fn known(&self) -> &[Self::Value];
 }
 
-/// Per-coefficient flags stored with a one-sample border of zeros on every side, so
-/// neighbour lookups need no bounds checks: coefficient (x, y) sits at
-/// `(y + 1) · stride + x + 1` with `stride = width + 2`. Beside the bytes, two bitmaps
-/// (one bit per coefficient, rows padded to whole 64-bit words) let the scans jump
-/// straight to the coefficients that need a decision: `sig_bits` mirrors [`SIG`] and
-/// `zt_bits` holds the zerotree coverage of the current pass.
+/// The scans' state beside the known coefficients (a coefficient is significant when
+/// its known value is not 0): bitmaps, one bit per coefficient with rows padded to whole
+/// 64-bit words, that let the scans jump straight to the coefficients that need a
+/// decision: `sig_bits` (significant) and `zt_bits` (the zerotree coverage of the
+/// current pass).
 #[derive(Debug, Clone)]
 struct FlagGrid {
-    flags: Vec<u8>,
-    stride: usize,
+    /// Width and height of the coefficient array.
+    width: usize,
+    height: usize,
     sig_bits: Vec<u64>,
     zt_bits: Vec<u64>,
     /// Coefficients whose significance the propagation scan of the current pass coded
@@ -242,8 +275,8 @@ impl FlagGrid {
         let (width, height) = (layout.width, layout.height);
         let words_per_row = width.div_ceil(64);
         FlagGrid {
-            flags: vec![0; (width + 2) * (height + 2)],
-            stride: width + 2,
+            width,
+            height,
             sig_bits: vec![0; words_per_row * height],
             zt_bits: vec![0; words_per_row * height],
             prop_bits: if coder.propagates() {
@@ -256,28 +289,22 @@ impl FlagGrid {
         }
     }
 
-    /// Index of coefficient (x, y).
-    #[inline]
-    fn at(&self, x: usize, y: usize) -> usize {
-        (y + 1) * self.stride + x + 1
-    }
-
     /// Bit index of coefficient (x, y) in the bitmaps.
     #[inline]
     fn bit(&self, x: usize, y: usize) -> usize {
         y * self.words_per_row * 64 + x
     }
 
-    /// Significant neighbours of flag index `f`: (left+right+up+down capped at 2, any
-    /// diagonal).
+    /// Index of the neighbour at (dx, dy) of coefficient `at`, if inside the array.
     #[inline]
-    fn neighbourhood(&self, f: usize) -> (usize, usize) {
-        let s = self.stride;
-        let g = &self.flags;
-        let sig = |j: usize| (g[j] & SIG) as usize;
-        let hv = sig(f - 1) + sig(f + 1) + sig(f - s) + sig(f + s);
-        let diag = sig(f - s - 1) | sig(f - s + 1) | sig(f + s - 1) | sig(f + s + 1);
-        (hv.min(2), diag)
+    fn neighbour(&self, at: At, dx: isize, dy: isize) -> Option<usize> {
+        let w = self.width;
+        if at.interior {
+            return Some(at.index.wrapping_add_signed(dy * w as isize + dx));
+        }
+        let x = (at.index % w).checked_add_signed(dx)?;
+        let y = (at.index / w).checked_add_signed(dy)?;
+        (x < w && y < self.height).then_some(y * w + x)
     }
 }
 
@@ -336,12 +363,11 @@ struct ParentBand {
     plane: u32,
 }
 
-/// One row of parents: where its first coefficient is in the bitmaps, the flags and the
+/// One row of parents: where its first coefficient is in the bitmaps and the
 /// coefficients.
 #[derive(Clone, Copy)]
 struct ParentRow {
     bit: usize,
-    flag: usize,
     index: usize,
     width: usize,
     halve: bool,
@@ -357,10 +383,9 @@ impl ParentRow {
     }
 }
 
-/// Where row `y` of a band starts in the flag grid, the coefficients and the bitmaps.
+/// Where row `y` of a band starts in the coefficients and the bitmaps.
 #[derive(Clone, Copy)]
 struct BandRow {
-    flag: usize,
     index: usize,
     bit: usize,
     /// The band's first column in the coefficient array.
@@ -375,7 +400,6 @@ impl BandRow {
     fn new(grid: &FlagGrid, sub: Subband, y: usize, width: usize, height: usize) -> BandRow {
         let gy = sub.y0 + y;
         BandRow {
-            flag: grid.at(sub.x0, gy),
             index: gy * width + sub.x0,
             bit: grid.bit(sub.x0, gy),
             x0: sub.x0,
@@ -388,7 +412,6 @@ impl BandRow {
     #[inline]
     fn at(&self, x: usize) -> At {
         At {
-            flag: self.flag + x,
             index: self.index + x,
             x,
             interior: self.interior_row && (1..self.width - 1).contains(&(self.x0 + x)),
@@ -464,7 +487,6 @@ fn parent_row(
     let py = if pb.halve { y / 2 } else { y };
     (py < pb.height).then(|| ParentRow {
         bit: grid.bit(pb.x0, pb.y0 + py),
-        flag: grid.at(pb.x0, pb.y0 + py),
         index: (pb.y0 + py) * width + pb.x0,
         width: pb.width,
         halve: pb.halve,
@@ -526,7 +548,6 @@ fn code_significance<S: Side>(
             return None;
         }
         side.commit_significant(i, b, p, negative);
-        grid.flags[at.flag] = SIG | ((p as u8) << PLANE_SHIFT);
         grid.sig_bits[bit / 64] |= 1 << (bit % 64);
         grid.significant_in_band[b] += 1;
     }
@@ -650,17 +671,16 @@ fn subordinate_scan<S: Side>(
                 while todo != 0 {
                     let x = chunk + todo.trailing_zeros() as usize;
                     todo &= todo - 1;
-                    let fi = row.flag + x;
-                    let f = grid.flags[fi];
                     let i = row.index + x;
-                    // Significant since this pass: no refinement bit yet.
-                    if u32::from(f >> PLANE_SHIFT) == p {
+                    let above = side.known_above(i, p);
+                    // Significant since this pass (magnitude 2^p): no refinement bit yet.
+                    if above == 0 {
                         continue;
                     }
                     let choice = contexts.choice;
                     // Age: 0 = first refinement (significant since the previous pass),
                     // 1 = second, 2 = older.
-                    let age = match side.known_above(i, p) {
+                    let age = match above {
                         1 => 0,
                         2 | 3 => 1,
                         _ => 2,
@@ -685,7 +705,6 @@ fn subordinate_scan<S: Side>(
                         return ScanEnd::Stopped;
                     }
                     side.commit_refinement(i, b, p, bit);
-                    grid.flags[fi] = (f & !(0x1F << PLANE_SHIFT)) | ((p as u8) << PLANE_SHIFT);
                 }
             }
         }
@@ -782,6 +801,7 @@ impl<B: BitSink> EncoderSide<'_, B> {
 }
 
 impl<B: BitSink> Side for EncoderSide<'_, B> {
+    type Value = i32;
     #[inline]
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i].unsigned_abs() >> p != 0;
@@ -1081,12 +1101,17 @@ fn measuring_side<'a, B: BitSink>(
 }
 
 /// Decoder side: fills signed magnitudes bit by bit.
-struct DecoderSide<'a> {
+struct DecoderSide<'a, V> {
     source: ArithmeticDecoder<'a>,
-    values: Vec<i32>,
+    values: Vec<V>,
+    /// Whether a coefficient became significant above [`Coefficient::MAX_PLANE`].
+    outgrown: bool,
+    /// The coefficient of the last refinement decision of the current pass, if any.
+    refined: Option<usize>,
 }
 
-impl Side for DecoderSide<'_> {
+impl<V: Coefficient> Side for DecoderSide<'_, V> {
+    type Value = V;
     #[inline]
     fn significance(&mut self, _i: usize, _p: u32, model: &mut BitModel) -> bool {
         self.source.decode(model)
@@ -1100,11 +1125,13 @@ impl Side for DecoderSide<'_> {
         self.source.decode(model)
     }
     #[inline]
-    fn refinement(&mut self, _i: usize, _p: u32, model: &mut BitModel) -> bool {
+    fn refinement(&mut self, i: usize, _p: u32, model: &mut BitModel) -> bool {
+        self.refined = Some(i);
         self.source.decode(model)
     }
     #[inline]
-    fn raw_refinement(&mut self, _i: usize, _p: u32) -> bool {
+    fn raw_refinement(&mut self, i: usize, _p: u32) -> bool {
+        self.refined = Some(i);
         self.source.decode_raw()
     }
     #[inline]
@@ -1114,35 +1141,41 @@ impl Side for DecoderSide<'_> {
     #[inline]
     fn commit_significant(&mut self, i: usize, _band: usize, p: u32, negative: bool) {
         let m = 1i32 << p;
-        self.values[i] = if negative { -m } else { m };
+        self.outgrown |= p > V::MAX_PLANE;
+        self.values[i] = V::put(if negative { -m } else { m });
     }
     #[inline]
     fn commit_refinement(&mut self, i: usize, _band: usize, p: u32, bit: bool) {
         if bit {
-            let v = self.values[i];
-            self.values[i] = if v < 0 { v - (1 << p) } else { v + (1 << p) };
+            let v = self.values[i].get();
+            self.values[i] = V::put(if v < 0 { v - (1 << p) } else { v + (1 << p) });
         }
     }
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
-        self.values[i] < 0
+        self.values[i].get() < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
-        self.values[i].unsigned_abs() >> (p + 1)
+        self.values[i].get().unsigned_abs() >> (p + 1)
     }
     #[inline]
-    fn known(&self) -> &[i32] {
+    fn known(&self) -> &[V] {
         &self.values
     }
 }
 
-/// The state of a decode: the bits known of every coefficient.
+/// The state of a decode: the bits known of every coefficient, stored as `V`.
 #[derive(Debug, Clone)]
-pub struct Decoder {
-    values: Vec<i32>,
-    grid: FlagGrid,
+pub struct Decoder<V = i32> {
+    values: Vec<V>,
+    /// Every band's place and shift.
+    bands: Vec<(Subband, u32)>,
     width: usize,
+    /// The first pass not decoded completely, if the decode stopped inside one: where.
+    stop: Option<Stop>,
+    /// The stream's first pass.
+    top_plane: Option<u32>,
     /// Passes decoded completely.
     pub passes_completed: u32,
     /// Whether the decode ran through plane 0 (every bit of every coefficient known).
@@ -1175,22 +1208,46 @@ impl Decoder {
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Decoder {
+        // Every own plane (≤ MAX_COEFFICIENT_PLANE) fits an i32.
+        Decoder::try_run_from(layout, coder, source, top_plane, max_passes)
+            .unwrap_or_else(|| unreachable!("an i32 holds every coefficient plane"))
+    }
+}
+
+impl<V: Coefficient> Decoder<V> {
+    /// As [`Decoder::run_from`], storing the coefficients as `V`: `None` (at the end of
+    /// the first pass that shows it) when a coefficient does not fit in a `V`.
+    pub fn try_run_from(
+        layout: &CoefficientLayout,
+        coder: Coder,
+        source: ArithmeticDecoder<'_>,
+        top_plane: Option<u32>,
+        max_passes: Option<u32>,
+    ) -> Option<Decoder<V>> {
         let n_coefficients = layout.len();
         let mut side = DecoderSide {
             source,
-            values: vec![0; n_coefficients],
+            values: vec![V::default(); n_coefficients],
+            outgrown: false,
+            refined: None,
         };
         let mut grid = FlagGrid::new(layout, coder);
         let mut contexts = Contexts::new(coder, ContextChoice::ALL);
         let mut passes_completed = 0;
         let mut complete = true;
+        let mut stop = None;
         if let Some(top) = top_plane {
             for n in (0..=top).rev() {
                 if max_passes.is_some_and(|limit| passes_completed >= limit) {
                     complete = false;
                     break;
                 }
-                match scan_pass(layout, &mut grid, &mut contexts, &mut side, n) {
+                side.refined = None;
+                let end = scan_pass(layout, &mut grid, &mut contexts, &mut side, n);
+                if side.outgrown {
+                    return None;
+                }
+                match end {
                     ScanEnd::Finished => {
                         passes_completed += 1;
                         // The inverse transform comes last.
@@ -1199,20 +1256,117 @@ impl Decoder {
                     }
                     ScanEnd::Stopped => {
                         complete = false;
+                        stop = Some(Stop {
+                            pass: n,
+                            refined: side.refined,
+                        });
                         break;
                     }
                 }
             }
         }
-        Decoder {
+        Some(Decoder {
             values: side.values,
-            grid,
+            bands: layout.bands.iter().map(|b| (b.sub, b.shift)).collect(),
             width: layout.width,
+            stop,
+            top_plane,
             passes_completed,
             complete,
+        })
+    }
+
+    /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
+    /// are known.
+    pub fn integer_coefficients(mut self) -> Vec<V> {
+        self.map_significant(|v, p| {
+            let extra = (((1u64 << p) - 1) / 2) as i32;
+            V::put(if v < 0 { v - extra } else { v + extra })
+        });
+        self.values
+    }
+
+    /// Replaces every significant coefficient `v` by `f(v, p)`, `p` the lowest plane
+    /// known of it; the others stay 0.
+    fn map_significant(&mut self, f: impl Fn(i32, u32) -> V) {
+        let w = self.width;
+        let refined_band = self.stop.and_then(|s| s.refined).map(|r| {
+            let (x, y) = (r % w, r / w);
+            self.bands.iter().position(|(sub, _)| {
+                (sub.x0..sub.x0 + sub.width).contains(&x)
+                    && (sub.y0..sub.y0 + sub.height).contains(&y)
+            })
+        });
+        for b in 0..self.bands.len() {
+            let (sub, shift) = self.bands[b];
+            let planes = self.band_planes(b, shift, refined_band.flatten());
+            for y in 0..sub.height {
+                let start = (sub.y0 + y) * w + sub.x0;
+                let row = &mut self.values[start..start + sub.width];
+                for (i, v) in (start..).zip(row) {
+                    let value = v.get();
+                    if value != 0 {
+                        *v = f(value, planes.lowest(i, value.unsigned_abs()));
+                    }
+                }
+            }
         }
     }
 
+    /// The planes known of band `b`'s significant coefficients (see [`BandPlanes`]);
+    /// `refined_band` holds the coefficient whose refinement the decode stopped at.
+    fn band_planes(&self, b: usize, shift: u32, refined_band: Option<usize>) -> BandPlanes {
+        let Some(top) = self.top_plane else {
+            return BandPlanes::default();
+        };
+        // The last pass decoded completely (top + 1: none).
+        let last = top + 1 - self.passes_completed;
+        let settled = last.saturating_sub(shift);
+        let partial = self.stop.and_then(|stop| {
+            let plane = stop.pass.checked_sub(shift)?;
+            let refined_below = match (stop.refined, refined_band) {
+                (Some(r), Some(rb)) if rb == b => r,
+                (Some(_), Some(rb)) if rb > b => usize::MAX,
+                _ => 0,
+            };
+            Some((plane, refined_below))
+        });
+        BandPlanes { settled, partial }
+    }
+}
+
+/// Where a decode stopped inside a pass.
+#[derive(Debug, Clone, Copy)]
+struct Stop {
+    /// The pass (global plane).
+    pass: u32,
+    /// The coefficient whose refinement bit was missing, when the decode stopped in the
+    /// subordinate scan (which refined the coefficients before it in scan order).
+    refined: Option<usize>,
+}
+
+/// The lowest plane known of a band's significant coefficients: `settled` after the
+/// passes decoded completely; in a pass the decode stopped inside (its plane, and the
+/// coefficient index below which the subordinate scan refined this band), that plane
+/// for those refined there or significant since it (magnitude below 2^(plane + 1)).
+#[derive(Debug, Default, Clone, Copy)]
+struct BandPlanes {
+    settled: u32,
+    partial: Option<(u32, usize)>,
+}
+
+impl BandPlanes {
+    /// Lowest plane known of coefficient `i`, of known magnitude `m`.
+    #[inline]
+    fn lowest(self, i: usize, m: u32) -> u32 {
+        match self.partial {
+            Some((p, refined_below)) if i < refined_below || m >> (p + 1) == 0 => p,
+            _ => self.settled,
+        }
+    }
+}
+
+impl Decoder {
     /// The per-node significance map of what was decoded (see
     /// [`crate::significance`]): built from the coefficients' leading bits, which are the
     /// planes at which they became significant.
@@ -1222,54 +1376,16 @@ impl Decoder {
 
     /// Real reconstruction (9/7): every coefficient mid-interval ([`Midpoint::Real`]),
     /// in quantiser units, reusing the coefficient buffer.
-    pub fn into_real_coefficients(self) -> Vec<f32> {
-        let Decoder {
-            values,
-            grid,
-            width,
-            ..
-        } = self;
-        let (mut x, mut y) = (0, 0);
-        values
+    pub fn into_real_coefficients(mut self) -> Vec<f32> {
+        // The f32 bits are made in place, then reinterpreted in place.
+        self.map_significant(|v, p| {
+            let magnitude = Midpoint::Real.value(v.unsigned_abs(), p);
+            (if v < 0 { -magnitude } else { magnitude } as f32).to_bits() as i32
+        });
+        self.values
             .into_iter()
-            .map(|v| {
-                let f = grid.flags[grid.at(x, y)];
-                x += 1;
-                if x == width {
-                    x = 0;
-                    y += 1;
-                }
-                if f & SIG == 0 {
-                    return 0.0;
-                }
-                let magnitude = Midpoint::Real.value(v.unsigned_abs(), (f >> PLANE_SHIFT) as u32);
-                (if v < 0 { -magnitude } else { magnitude }) as f32
-            })
+            .map(|bits| f32::from_bits(bits as u32))
             .collect()
-    }
-
-    /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
-    /// are known.
-    pub fn integer_coefficients(self) -> Vec<i32> {
-        let Decoder {
-            values,
-            grid,
-            width,
-            ..
-        } = self;
-        let mut out = values;
-        for (i, v) in out.iter_mut().enumerate() {
-            let (x, y) = (i % width, i / width);
-            let f = grid.flags[grid.at(x, y)];
-            if f & SIG == 0 {
-                *v = 0;
-                continue;
-            }
-            let p = (f >> PLANE_SHIFT) as u32;
-            let extra = (((1u64 << p) - 1) / 2) as i32;
-            *v = if *v < 0 { *v - extra } else { *v + extra };
-        }
-        out
     }
 }
 
@@ -1344,6 +1460,78 @@ mod tests {
         );
         assert!(dec.complete);
         assert_eq!(dec.integer_coefficients(), coefficients);
+    }
+
+    /// The decoder of `bytes` (a prefix when not `complete`) storing `V`.
+    fn decode_as<V: Coefficient>(
+        layout: &CoefficientLayout,
+        bytes: &[u8],
+        complete: bool,
+        top: Option<u32>,
+    ) -> Option<Decoder<V>> {
+        let source = ArithmeticDecoder::new(bytes, complete);
+        Decoder::try_run_from(layout, Coder::default(), source, top, None)
+    }
+
+    #[test]
+    fn i16_decoder_matches_i32_and_declines_what_does_not_fit() {
+        let (w, h) = (48, 40);
+        let layout = layout_for(w, h, 3, |s| s.level);
+        // Magnitudes up to 32767 fit; one of 32768 (plane 15) does not.
+        let mut c = pseudo_random(w * h, 11, 32767);
+        c[5] = -32767;
+        let top = top_plane(&layout, &c);
+        let full = unit_weight_encode(&layout, &c, None);
+        for cut in [full.bytes.len(), 900, 300] {
+            let bytes = &full.bytes[..cut];
+            let complete = cut == full.bytes.len();
+            let wide = decode_as::<i32>(&layout, bytes, complete, top).unwrap();
+            let narrow = decode_as::<i16>(&layout, bytes, complete, top).unwrap();
+            assert_eq!(narrow.passes_completed, wide.passes_completed);
+            let narrow: Vec<i32> = narrow
+                .integer_coefficients()
+                .into_iter()
+                .map(i32::from)
+                .collect();
+            assert_eq!(narrow, wide.integer_coefficients(), "{cut} bytes");
+        }
+        c[5] = 32768;
+        let top = top_plane(&layout, &c);
+        let full = unit_weight_encode(&layout, &c, None);
+        assert!(decode_as::<i16>(&layout, &full.bytes, true, top).is_none());
+        let wide = decode_as::<i32>(&layout, &full.bytes, true, top).unwrap();
+        assert_eq!(wide.integer_coefficients(), c);
+    }
+
+    #[test]
+    fn every_prefix_knows_exactly_the_planes_it_decoded() {
+        let (w, h) = (40, 36);
+        let layout = layout_for(w, h, 3, |s| s.level);
+        let c = pseudo_random(w * h, 5, 9000);
+        let full = unit_weight_encode(&layout, &c, None);
+        let top = top_plane(&layout, &c);
+        for cut in (1..=full.bytes.len()).step_by(7) {
+            let complete = cut == full.bytes.len();
+            let mut dec = decode_as::<i32>(&layout, &full.bytes[..cut], complete, top).unwrap();
+            let known = dec.values.clone();
+            // Each significant coefficient as (its known magnitude, its lowest plane).
+            dec.map_significant(|v, p| (v.unsigned_abs() << 5 | p) as i32);
+            for (i, (&k, &packed)) in known.iter().zip(&dec.values).enumerate() {
+                if k == 0 {
+                    continue;
+                }
+                let p = packed as u32 & 31;
+                let (m, truth) = (k.unsigned_abs(), c[i].unsigned_abs());
+                // The bits below p are unknown (zero); the truth lies in [m, m + 2^p).
+                assert_eq!(
+                    m & ((1 << p) - 1),
+                    0,
+                    "{cut} bytes, coefficient {i}: plane {p}"
+                );
+                assert!((m..m + (1 << p)).contains(&truth), "{cut} bytes, {i}");
+                assert_eq!(k < 0, c[i] < 0);
+            }
+        }
     }
 
     #[test]

@@ -428,20 +428,40 @@ impl Raster {
     /// Copies `part`'s samples into this raster with its top-left corner at (`x`, `y`).
     /// Panics if the types differ or `part` does not fit.
     pub fn paste(&mut self, x: usize, y: usize, part: &Raster) {
-        assert!(x + part.width <= self.width && y + part.height <= self.height);
-        fn rows<T: Copy>(to: &mut [T], stride: usize, from: &[T], x: usize, y: usize, w: usize) {
-            for (k, row) in from.chunks_exact(w).enumerate() {
-                let start = (y + k) * stride + x;
-                to[start..start + w].copy_from_slice(row);
+        self.paste_part(x, y, part, (0, 0, part.width, part.height));
+    }
+
+    /// Copies the `(px, py, width, height)` window of `part` into this raster with its
+    /// top-left corner at (`x`, `y`), with no copy of the window between. Panics if the
+    /// types differ or the window is not inside `part` or does not fit here.
+    pub fn paste_part(
+        &mut self,
+        x: usize,
+        y: usize,
+        part: &Raster,
+        (px, py, w, h): (usize, usize, usize, usize),
+    ) {
+        assert!(px + w <= part.width && py + h <= part.height);
+        assert!(x + w <= self.width && y + h <= self.height);
+        // Row k of the window: (start in this raster, start in `part`).
+        let (to_stride, from_stride) = (self.width, part.width);
+        let starts = (0..h).map(|k| ((y + k) * to_stride + x, (py + k) * from_stride + px));
+        fn rows<T: Copy>(
+            to: &mut [T],
+            from: &[T],
+            starts: impl Iterator<Item = (usize, usize)>,
+            w: usize,
+        ) {
+            for (t, f) in starts {
+                to[t..t + w].copy_from_slice(&from[f..f + w]);
             }
         }
-        let (s, w) = (self.width, part.width);
         match (&mut self.samples, &part.samples) {
-            (Samples::U8(to), Samples::U8(from)) => rows(to, s, from, x, y, w),
-            (Samples::U16(to), Samples::U16(from)) => rows(to, s, from, x, y, w),
-            (Samples::I16(to), Samples::I16(from)) => rows(to, s, from, x, y, w),
-            (Samples::I32(to), Samples::I32(from)) => rows(to, s, from, x, y, w),
-            (Samples::F32(to), Samples::F32(from)) => rows(to, s, from, x, y, w),
+            (Samples::U8(to), Samples::U8(from)) => rows(to, from, starts, w),
+            (Samples::U16(to), Samples::U16(from)) => rows(to, from, starts, w),
+            (Samples::I16(to), Samples::I16(from)) => rows(to, from, starts, w),
+            (Samples::I32(to), Samples::I32(from)) => rows(to, from, starts, w),
+            (Samples::F32(to), Samples::F32(from)) => rows(to, from, starts, w),
             _ => panic!("pasting samples of another type"),
         }
     }
@@ -450,6 +470,18 @@ impl Raster {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pasting_a_window_equals_pasting_its_crop() {
+        let part = Raster::new(5, 4, Samples::I16((0..20).collect())).unwrap();
+        let blank = || Raster::new(6, 6, Samples::I16(vec![-1; 36])).unwrap();
+        for (px, py, w, h) in [(0, 0, 5, 4), (1, 2, 3, 2), (4, 3, 1, 1), (2, 0, 0, 4)] {
+            let (mut direct, mut via_crop) = (blank(), blank());
+            direct.paste_part(1, 2, &part, (px, py, w, h));
+            via_crop.paste(1, 2, &part.crop(px, py, w, h));
+            assert_eq!(direct.samples, via_crop.samples, "{px},{py} {w}x{h}");
+        }
+    }
 
     #[test]
     fn sample_type_codes_round_trip() {

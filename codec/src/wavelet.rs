@@ -204,6 +204,18 @@ pub fn inverse_53(data: &mut [i32], width: usize, height: usize, levels: u32) {
     inverse_2d(&Int53Kernel, data, width, height, levels);
 }
 
+/// [`inverse_53`] on coefficients stored as `i16`, lifted in `i32` line buffers. Returns
+/// whether every value it stored (each level's outputs) fitted in an `i16`: only then is
+/// `data` what [`inverse_53`] makes of the same coefficients as `i32`.
+///
+/// # Panics
+///
+/// If `data.len() != width * height` or `levels > max_levels(width, height)`.
+pub fn inverse_53_i16(data: &mut [i16], width: usize, height: usize, levels: u32) -> bool {
+    check_args(data.len(), width, height, levels);
+    inverse_2d(&Int53Kernel, data, width, height, levels)
+}
+
 /// Forward CDF 9/7 of a `width × height` image, in place.
 ///
 /// Four lifting steps (α, β, γ, δ) followed by scaling the low-pass outputs by `√2/K` and
@@ -501,6 +513,27 @@ trait Sample: Copy {
     type Work: Copy + Default;
     fn widen(self) -> Self::Work;
     fn narrow(w: Self::Work) -> Self;
+    /// Whether `w` is stored exactly by [`Sample::narrow`] (checked by the inverse).
+    #[inline(always)]
+    fn fits(_w: Self::Work) -> bool {
+        true
+    }
+}
+
+impl Sample for i16 {
+    type Work = i32;
+    #[inline(always)]
+    fn widen(self) -> i32 {
+        i32::from(self)
+    }
+    #[inline(always)]
+    fn narrow(w: i32) -> i16 {
+        w as i16
+    }
+    #[inline(always)]
+    fn fits(w: i32) -> bool {
+        i32::from(w as i16) == w
+    }
 }
 
 impl Sample for i32 {
@@ -553,6 +586,17 @@ fn store<T: Sample>(dst: &mut [T], src: &[T::Work]) {
     }
 }
 
+/// [`store`], returning whether every value fitted (see [`Sample::fits`]).
+#[inline(always)]
+fn store_fits<T: Sample>(dst: &mut [T], src: &[T::Work]) -> bool {
+    let mut fits = true;
+    for (d, &s) in dst.iter_mut().zip(src) {
+        fits &= T::fits(s);
+        *d = T::narrow(s);
+    }
+    fits
+}
+
 /// Scratch large enough for one row or one column strip of a `width × height` image.
 fn scratch_for<T: Sample>(width: usize, height: usize) -> Vec<T::Work> {
     vec![T::Work::default(); width.max(height * STRIP.min(width))]
@@ -577,26 +621,28 @@ fn forward_2d<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`forward_2d`].
+/// Inverse of [`forward_2d`]; whether every value stored fitted (see [`Sample::fits`]).
 fn inverse_2d<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
     width: usize,
     height: usize,
     levels: u32,
-) {
+) -> bool {
     if width == 0 || height == 0 {
-        return;
+        return true;
     }
     let mut scratch = scratch_for::<T>(width, height);
+    let mut fits = true;
     for &(lw, lh) in regions(width, height, levels)
         .iter()
         .take(levels as usize)
         .rev()
     {
-        cols_synthesize(kernel, data, width, lw, lh, &mut scratch);
-        rows_synthesize(kernel, data, width, lw, lh, &mut scratch);
+        fits &= cols_synthesize(kernel, data, width, lw, lh, &mut scratch);
+        fits &= rows_synthesize(kernel, data, width, lw, lh, &mut scratch);
     }
+    fits
 }
 
 /// 1-D analysis of the first `lw` samples of the first `lh` rows.
@@ -629,7 +675,7 @@ fn rows_analyze<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`rows_analyze`].
+/// Inverse of [`rows_analyze`]; whether every value stored fitted.
 fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
@@ -637,10 +683,11 @@ fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
     lw: usize,
     lh: usize,
     scratch: &mut [T::Work],
-) {
+) -> bool {
     if lw < 2 {
-        return;
+        return true;
     }
+    let mut fits = true;
     let nl = lw.div_ceil(2);
     let (lo, rest) = scratch.split_at_mut(nl);
     let hi = &mut rest[..lw - nl];
@@ -650,13 +697,16 @@ fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
         load(hi, &row[nl..]);
         kernel.synthesize(lo, hi, 1);
         for ((pair, &l), &h) in row.chunks_exact_mut(2).zip(lo.iter()).zip(hi.iter()) {
+            fits &= T::fits(l) & T::fits(h);
             pair[0] = T::narrow(l);
             pair[1] = T::narrow(h);
         }
         if lw % 2 == 1 {
+            fits &= T::fits(lo[nl - 1]);
             row[lw - 1] = T::narrow(lo[nl - 1]);
         }
     }
+    fits
 }
 
 /// 1-D analysis of the first `lh` samples of the first `lw` columns, [`STRIP`] columns at
@@ -700,7 +750,7 @@ fn cols_analyze<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`cols_analyze`].
+/// Inverse of [`cols_analyze`]; whether every value stored fitted.
 fn cols_synthesize<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
@@ -708,10 +758,11 @@ fn cols_synthesize<T: Sample, K: Kernel<T::Work>>(
     lw: usize,
     lh: usize,
     scratch: &mut [T::Work],
-) {
+) -> bool {
     if lh < 2 {
-        return;
+        return true;
     }
+    let mut fits = true;
     let nl = lh.div_ceil(2);
     let nh = lh - nl;
     let mut x0 = 0;
@@ -730,14 +781,15 @@ fn cols_synthesize<T: Sample, K: Kernel<T::Work>>(
         kernel.synthesize(lo, hi, lanes);
         for (i, src) in lo.chunks_exact(lanes).enumerate() {
             let dst = 2 * i * width + x0;
-            store(&mut data[dst..dst + lanes], src);
+            fits &= store_fits(&mut data[dst..dst + lanes], src);
         }
         for (i, src) in hi.chunks_exact(lanes).enumerate() {
             let dst = (2 * i + 1) * width + x0;
-            store(&mut data[dst..dst + lanes], src);
+            fits &= store_fits(&mut data[dst..dst + lanes], src);
         }
         x0 += lanes;
     }
+    fits
 }
 
 #[cfg(test)]
@@ -823,6 +875,43 @@ mod tests {
                 0..=max_levels(w, h),
             )
         })
+    }
+
+    #[test]
+    fn inverse_53_in_i16_matches_i32_or_says_it_did_not_fit() {
+        let mut rng = Rng(7);
+        for &(w, h, levels) in &[(1, 1, 0), (9, 1, 3), (33, 17, 4), (64, 48, 5)] {
+            let data: Vec<i32> = (0..w * h)
+                .map(|_| (rng.next() % 60000) as i32 - 30000)
+                .collect();
+            let mut coefficients = data.clone();
+            forward_53(&mut coefficients, w, h, levels);
+            let mut wide = coefficients.clone();
+            inverse_53(&mut wide, w, h, levels);
+            let fits = coefficients.iter().all(|&c| i16::try_from(c).is_ok());
+            let mut narrow: Vec<i16> = coefficients.iter().map(|&c| c as i16).collect();
+            let stored = inverse_53_i16(&mut narrow, w, h, levels);
+            if fits && stored {
+                assert!(narrow
+                    .iter()
+                    .map(|&v| i32::from(v))
+                    .eq(wide.iter().copied()));
+            }
+            // Smooth data keeps every value in range.
+            let smooth: Vec<i32> = (0..w * h).map(|i| (i % w + i / w) as i32 * 50).collect();
+            let mut c = smooth.clone();
+            forward_53(&mut c, w, h, levels);
+            let mut narrow: Vec<i16> = c.iter().map(|&c| c as i16).collect();
+            assert!(inverse_53_i16(&mut narrow, w, h, levels));
+            assert!(narrow
+                .iter()
+                .map(|&v| i32::from(v))
+                .eq(smooth.iter().copied()));
+        }
+        // Coefficients that fit, an image that does not: 30000 at every sample of a
+        // 2x2 image's LL and details reconstructs values beyond i16.
+        let mut big = vec![30000i16; 4];
+        assert!(!inverse_53_i16(&mut big, 2, 2, 1));
     }
 
     fn roundtrip_53(data: &[i32], w: usize, h: usize, levels: u32) {

@@ -9,7 +9,7 @@ use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter, BLOCK_WIDTH};
 use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
-use wavemesh_codec::{decode_window, DecodeOptions, Raster, TileGrid, Window};
+use wavemesh_codec::{decode_window_then, DecodeOptions, Raster, TileGrid, Window};
 
 use super::coding::{encode_options, print_encode_report, DecodeOutcome, EncodeArgs, EncodeFacts};
 use super::{read_failure, timed, CliError, Workload};
@@ -143,9 +143,10 @@ fn decode_block_columns(grid: &TileGrid) -> usize {
 
 /// Decodes the tiled file `layout` describes one block at a time (a run of tiles of one
 /// tile row, see [`decode_block_columns`]) into a tiled GeoTIFF at `output`, each block
-/// written on another thread while the next is decoded (with one thread, written
-/// before the next is decoded): memory holds two blocks, not the raster, and not a tile
-/// row when the blocks are narrower. `bar` shows the tile rows done.
+/// written on another thread while the next one's tiles are decoded, which are placed
+/// once it is written (with one thread, written before the next is decoded): memory
+/// holds one block and the tiles of the next, not the raster, and not a tile row when
+/// the blocks are narrower. `bar` shows the tile rows done.
 pub fn decode_to_geotiff(
     (input, output): (&Path, &Path),
     source: &mut FileSource,
@@ -175,10 +176,11 @@ pub fn decode_to_geotiff(
     };
     let per_block = decode_block_columns(grid);
     let by_rows = per_block == grid.columns();
-    let mut decode_all = |deliver: &mut dyn FnMut(Window, Raster) -> bool| {
+    let mut decode_all = |deliver: &mut dyn FnMut(Window, Raster) -> bool,
+                          written: &mut dyn FnMut()| {
         for (row, columns) in grid.blocks(per_block) {
             let window = grid.block(row, columns.clone());
-            let decoded = decode_window(source, Some(window), options)
+            let decoded = decode_window_then(source, Some(window), options, written)
                 .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
             outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
             outcome.complete &= decoded.complete;
@@ -212,6 +214,7 @@ pub fn decode_to_geotiff(
                     false
                 }
             },
+            &mut || {},
         )?;
         return match failure {
             Some(e) => Err(CliError::DemOutput(e)),
@@ -219,10 +222,25 @@ pub fn decode_to_geotiff(
         }
         .map(|()| outcome);
     }
-    let (blocks, written) = std::sync::mpsc::sync_channel::<(Window, Raster)>(1);
+    let (blocks, to_write) = std::sync::mpsc::sync_channel::<(Window, Raster)>(0);
+    let (done, written) = std::sync::mpsc::channel::<()>();
     std::thread::scope(|scope| {
-        let writing = scope.spawn(move || write_blocks(writer, written, write));
-        let decoding = decode_all(&mut |window, band| blocks.send((window, band)).is_ok());
+        let writing = scope.spawn(move || write_blocks(writer, to_write, done, write));
+        // Blocks sent and not yet written.
+        let pending = std::cell::Cell::new(0usize);
+        let decoding = decode_all(
+            &mut |window, band| {
+                pending.set(pending.get() + 1);
+                blocks.send((window, band)).is_ok()
+            },
+            // The previous block is written (or the writer has stopped) before the next
+            // block's samples are made.
+            &mut || {
+                while pending.get() > 0 && written.recv().is_ok() {
+                    pending.set(pending.get() - 1);
+                }
+            },
+        );
         drop(blocks);
         let wrote = writing.join().expect("the GeoTIFF writer does not panic");
         decoding.and(wrote.map_err(CliError::DemOutput))
@@ -230,16 +248,20 @@ pub fn decode_to_geotiff(
     Ok(outcome)
 }
 
-/// Writes the blocks that arrive with `write`, then finishes the file (nothing is
-/// left behind if a block fails or the blocks stop early: the writer is dropped
-/// unfinished).
+/// Writes the blocks that arrive with `write`, saying on `done` when each is written
+/// (and dropped), then finishes the file (nothing is left behind if a block fails or
+/// the blocks stop early: the writer is dropped unfinished).
 fn write_blocks(
     mut writer: TiledGeoTiffWriter,
     blocks: std::sync::mpsc::Receiver<(Window, Raster)>,
+    done: std::sync::mpsc::Sender<()>,
     write: impl Fn(&mut TiledGeoTiffWriter, Window, &Raster) -> Result<(), DemError>,
 ) -> Result<(), DemError> {
     for (window, band) in blocks {
         write(&mut writer, window, &band)?;
+        drop(band);
+        // The decoder may have stopped waiting (it failed): nothing to tell it then.
+        let _ = done.send(());
     }
     writer.finish()
 }

@@ -1,9 +1,9 @@
 //! The context models: which adaptive [`BitModel`] codes each EZW decision, chosen from
-//! what encoder and decoder both know at that moment of the scan (the flags, the known
-//! coefficient values, the parent).
+//! what encoder and decoder both know at that moment of the scan (the known coefficient
+//! values, which say which are significant, and the parent).
 
 use super::priors::primed;
-use super::{FlagGrid, ParentRow, Side, SIG};
+use super::{Coefficient, FlagGrid, ParentRow, Side};
 use crate::entropy::BitModel;
 
 /// Which context information the models are selected by (all of it in every stream; the
@@ -133,8 +133,7 @@ const ACTIVITY_LEVELS: usize = 8;
 /// Levels of the quantised parent magnitude of coder 2.
 const PARENT_LEVELS: usize = 3;
 
-/// The sign model index of coefficient `at` (flag index, coefficient index, column in
-/// its band). V1: the left and upper neighbours' signs; V2: the horizontal and vertical
+/// The sign model index of coefficient `at`. V1: the left and upper neighbours' signs; V2: the horizontal and vertical
 /// neighbours' sign balance and the parent's sign.
 #[inline]
 pub(super) fn sign_context<S: Side>(
@@ -145,13 +144,10 @@ pub(super) fn sign_context<S: Side>(
     orientation: usize,
     parent_row: Option<ParentRow>,
 ) -> usize {
-    let s = grid.stride;
-    let w = s - 2;
-    let (fi, i) = (at.flag, at.index);
-    let state = |df: usize, j: usize| sign_state(grid.flags[df], side, j);
+    let state = |j: Option<usize>| sign_state(side, j);
     let signs = contexts.choice.neighbour_signs as usize;
-    let left = state(fi - 1, i.wrapping_sub(1));
-    let up = state(fi - s, i.wrapping_sub(w));
+    let left = state(grid.neighbour(at, -1, 0));
+    let up = state(grid.neighbour(at, 0, -1));
     match contexts.coder {
         Coder::V1 => (orientation * 3 + left * signs) * 3 + up * signs,
         Coder::V2 | Coder::V3 | Coder::V4 => {
@@ -159,13 +155,11 @@ pub(super) fn sign_context<S: Side>(
                 let v = SIGN_VALUE[a] + SIGN_VALUE[b];
                 (v.signum() + 1) as usize
             };
-            let h = balance(left, state(fi + 1, i + 1));
-            let v = balance(up, state(fi + s, i + w));
+            let h = balance(left, state(grid.neighbour(at, 1, 0)));
+            let v = balance(up, state(grid.neighbour(at, 0, 1)));
             let parent = parent_row
-                .and_then(|pr| Some((pr, pr.column(at.x)?)))
-                .map_or(0, |(pr, px)| {
-                    state(pr.flag + px, pr.index + px) * contexts.choice.parent as usize
-                });
+                .and_then(|pr| Some(pr.index + pr.column(at.x)?))
+                .map_or(0, |j| state(Some(j)) * contexts.choice.parent as usize);
             ((orientation * 3 + h * signs) * 3 + v * signs) * 3 + parent
         }
     }
@@ -174,24 +168,38 @@ pub(super) fn sign_context<S: Side>(
 /// Sign states (0 none, 1 +, 2 −) as numbers.
 const SIGN_VALUE: [i32; 3] = [0, 1, -1];
 
-/// Sign state of a neighbour for sign contexts: 0 = not significant (or outside the
-/// array: border flags are zero, so `j` is then never used), 1 = +, 2 = −.
+/// Sign state of a neighbour for sign contexts: 0 = not significant (or `None`: outside
+/// the array), 1 = +, 2 = −.
 #[inline]
-fn sign_state<S: Side>(flags: u8, side: &S, j: usize) -> usize {
-    if flags & SIG == 0 {
-        0
-    } else if side.is_negative(j) {
-        2
-    } else {
-        1
+fn sign_state<S: Side>(side: &S, j: Option<usize>) -> usize {
+    match j {
+        Some(j) if significant(side.known(), j) => 1 + side.is_negative(j) as usize,
+        _ => 0,
     }
+}
+
+/// Whether coefficient `j` is significant: its known value is not 0.
+#[inline(always)]
+fn significant<V: Coefficient>(known: &[V], j: usize) -> bool {
+    known[j].get() != 0
+}
+
+/// Significant neighbours of coefficient `at`: (left+right+up+down capped at 2, any
+/// diagonal).
+#[inline]
+fn neighbourhood<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> (usize, usize) {
+    let sig = |dx: isize, dy: isize| {
+        grid.neighbour(at, dx, dy)
+            .is_some_and(|j| significant(known, j)) as usize
+    };
+    let hv = sig(-1, 0) + sig(1, 0) + sig(0, -1) + sig(0, 1);
+    let diag = sig(-1, -1) | sig(1, -1) | sig(-1, 1) | sig(1, 1);
+    (hv.min(2), diag)
 }
 
 /// Where a coefficient is.
 #[derive(Clone, Copy)]
 pub(super) struct At {
-    /// Index in the flag grid.
-    pub(super) flag: usize,
     /// Index in the coefficient array.
     pub(super) index: usize,
     /// Column in its band.
@@ -213,14 +221,13 @@ pub(super) fn dominant_contexts<S: Side>(
     parent_row: Option<ParentRow>,
 ) -> (usize, usize) {
     let choice = contexts.choice;
-    let parent_flags = parent_row
-        .and_then(|pr| Some((pr, pr.column(at.x)?)))
-        .map(|(pr, px)| (pr, px, grid.flags[pr.flag + px]))
-        .filter(|&(_, _, f)| f & SIG != 0 && choice.parent);
+    let parent = parent_row
+        .and_then(|pr| Some((pr, pr.index + pr.column(at.x)?)))
+        .filter(|&(_, j)| choice.parent && significant(side.known(), j));
     match contexts.coder {
         Coder::V1 => {
-            let parent_sig = parent_flags.is_some() as usize;
-            let (hv, diag) = grid.neighbourhood(at.flag);
+            let parent_sig = parent.is_some() as usize;
+            let (hv, diag) = neighbourhood(grid, side.known(), at);
             let (hv, diag) = (
                 hv * choice.neighbours as usize,
                 diag * choice.neighbours as usize,
@@ -236,8 +243,8 @@ pub(super) fn dominant_contexts<S: Side>(
             } else {
                 0
             };
-            let parent = parent_flags.map_or(0, |(pr, px, _)| {
-                let known = side.known()[pr.index + px].unsigned_abs();
+            let parent = parent.map_or(0, |(pr, j)| {
+                let known = side.known()[j].get().unsigned_abs();
                 1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
             });
             let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
@@ -249,11 +256,10 @@ pub(super) fn dominant_contexts<S: Side>(
 /// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
 /// ones counted twice.
 #[inline]
-fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
-    // The grid's rows are the coefficient rows with a border column on each side.
-    let w = grid.stride - 2;
+fn neighbour_sum<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> u64 {
+    let w = grid.width;
     let i = at.index;
-    let m = |j: usize| u64::from(known[j].unsigned_abs());
+    let m = |j: usize| u64::from(known[j].get().unsigned_abs());
     if at.interior {
         return 2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
             + m(i - w - 1)
@@ -261,21 +267,20 @@ fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
             + m(i + w - 1)
             + m(i + w + 1);
     }
-    // On the array's edge: the border flags say which neighbours exist.
-    let (s, w) = (grid.stride as isize, w as isize);
+    // On the array's edge: only the neighbours inside it count.
     let mut sum = 0u64;
-    for (df, di, weight) in [
-        (-1, -1, 2),
-        (1, 1, 2),
-        (-s, -w, 2),
-        (s, w, 2),
-        (-s - 1, -w - 1, 1),
-        (-s + 1, -w + 1, 1),
-        (s - 1, w - 1, 1),
-        (s + 1, w + 1, 1),
+    for (dx, dy, weight) in [
+        (-1, 0, 2),
+        (1, 0, 2),
+        (0, -1, 2),
+        (0, 1, 2),
+        (-1, -1, 1),
+        (1, -1, 1),
+        (-1, 1, 1),
+        (1, 1, 1),
     ] {
-        if grid.flags[at.flag.wrapping_add_signed(df)] & SIG != 0 {
-            sum += weight * m(i.wrapping_add_signed(di));
+        if let Some(j) = grid.neighbour(at, dx, dy) {
+            sum += weight * m(j);
         }
     }
     sum
@@ -283,10 +288,10 @@ fn neighbour_sum(grid: &FlagGrid, known: &[i32], at: At) -> u64 {
 
 /// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
 #[inline]
-pub(super) fn refinement_context(
+pub(super) fn refinement_context<V: Coefficient>(
     contexts: &Contexts,
     grid: &FlagGrid,
-    known: &[i32],
+    known: &[V],
     at: At,
     p: u32,
     age: usize,
@@ -295,7 +300,7 @@ pub(super) fn refinement_context(
     let choice = contexts.choice;
     let (busy, levels) = match contexts.coder {
         Coder::V1 => {
-            let (hv, diag) = grid.neighbourhood(at.flag);
+            let (hv, diag) = neighbourhood(grid, known, at);
             ((hv + diag > 1) as usize, 2)
         }
         // Coder 2: the neighbours' known magnitudes at plane `p`.

@@ -8,7 +8,7 @@ use crate::error::CodecError;
 use crate::ezw::{CoefficientLayout, Decoder};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{integer_samples, rescale_97, to_samples};
+use crate::quantize::{integer_samples, rescale_97, to_samples, whole_offset};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
@@ -61,13 +61,27 @@ pub fn decode_window(
     window: Option<Window>,
     options: &DecodeOptions,
 ) -> Result<Decoded, CodecError> {
+    decode_window_then(source, window, options, &mut || {})
+}
+
+/// [`decode_window`], calling `before_output` once a tiled file's tiles are decoded,
+/// before the window's samples are allocated (a writer can finish the previous window
+/// there, so that the two are never held together); of a single stream, once it is
+/// decoded.
+pub fn decode_window_then(
+    source: &mut impl ByteSource,
+    window: Option<Window>,
+    options: &DecodeOptions,
+    before_output: &mut dyn FnMut(),
+) -> Result<Decoded, CodecError> {
     if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
-        return crate::tiles::decode_layout(source, &layout, window, options);
+        return crate::tiles::decode_layout(source, &layout, window, options, before_output);
     }
     let data = source
         .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
         .map_err(|e| CodecError::Read(e.to_string()))?;
     let mut decoded = decode(&data, options)?;
+    before_output();
     if let Some(w) = window {
         decoded.raster = crop_to_window(&decoded.raster, w)?;
     }
@@ -108,7 +122,8 @@ fn index_limit(options: &DecodeOptions) -> u64 {
 /// Working memory a decode needs, in bytes (used for the limit check).
 fn decode_memory(header: &Header) -> u64 {
     let n = header.sample_count();
-    // coefficients (4, reused for the output) + flags (1) + mask (1 when present).
+    // coefficients (4 at most, reused for the output) + the scans' bitmaps (3 bits, counted
+    // as 1) + mask (1 when present).
     n * (5 + (header.mask_len > 0) as u64)
 }
 
@@ -143,7 +158,7 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
                 "significance maps come from single-stream files, not tiled ones".into(),
             ));
         }
-        return crate::tiles::decode_layout(&mut data, &layout, None, options);
+        return crate::tiles::decode_layout(&mut data, &layout, None, options, &mut || {});
     }
     let data = match options.max_bytes {
         Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],
@@ -173,11 +188,14 @@ fn decode_stream(
     let payload_present = sections.payload_check.complete;
     // ... and it is a whole stream, not a prefix: its padding is genuine.
     let payload_complete = payload_present && !header.payload_truncated;
-    let (decoder, significance) = run_zerotree(&header, sections, payload_complete, options);
-    let passes_decoded = decoder.passes_completed;
-    let ezw_complete = decoder.complete && payload_complete;
     let mask = sections.mask.as_ref().map(Mask::as_bitslice);
-    let mut samples = reconstruct(&header, decoder, mask);
+    let Reconstruction {
+        mut samples,
+        passes_decoded,
+        complete,
+        significance,
+    } = reconstruction(&header, sections, payload_complete, options, mask);
+    let ezw_complete = complete && payload_complete;
     progress::report(Stage::Transform, 1, 1);
     let residuals_complete =
         apply_residual_section(&header, sections, &mut samples, mask, ezw_complete);
@@ -205,36 +223,98 @@ fn decode_stream(
     })
 }
 
-/// Runs the zerotree decoder over the payload (as far as `options` let it), and takes
-/// the significance map from it when `options` ask for one.
-fn run_zerotree(
+/// What the zerotree decode and the inverse transform made of a stream.
+struct Reconstruction {
+    samples: Samples,
+    passes_decoded: u32,
+    /// Whether the zerotree decode ran through plane 0.
+    complete: bool,
+    significance: Option<SignificanceMap>,
+}
+
+/// Decodes the payload and inverts the transform: in `i16` when
+/// [`narrow_reconstruction`] can, else in `i32`. Both give the same samples.
+fn reconstruction(
     header: &Header,
     sections: &StreamSections,
     payload_complete: bool,
     options: &DecodeOptions,
-) -> (Decoder, Option<SignificanceMap>) {
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Reconstruction {
     let (width, height) = (header.width as usize, header.height as usize);
     let subbands = wavelet::subbands(width, height, header.levels as u32);
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
     let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
-    let source = ArithmeticDecoder::new_framed(
-        sections.payload_framed,
-        sections.payload_check.data_len,
-        CHUNK,
-        4,
-        payload_complete,
-    );
+    let narrow = header.sample_type.bytes() <= 2
+        && header.wavelet == Wavelet::Int53
+        && whole_offset(header.mapping)
+        && !options.significance_map;
+    if narrow {
+        let source = payload_source(sections, payload_complete);
+        if let Some(done) = narrow_reconstruction(&layout, header, source, options, mask) {
+            return done;
+        }
+    }
     let decoder = Decoder::run_from(
         &layout,
         header.coder,
-        source,
+        payload_source(sections, payload_complete),
         header.top_plane.map(u32::from),
         options.max_passes,
     );
     let significance = options
         .significance_map
         .then(|| decoder.significance(&layout));
-    (decoder, significance)
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    Reconstruction {
+        samples: reconstruct(header, decoder, mask),
+        passes_decoded,
+        complete,
+        significance,
+    }
+}
+
+/// The 5/3 decode of a stream of 1- or 2-byte integer samples (whole offset) with
+/// coefficients and inverse transform in `i16`, half the memory of `i32`, the samples
+/// made in place: `None` (after the first pass that shows it, or after the inverse) when
+/// a coefficient or a value of the inverse transform does not fit, for an `i32` decode.
+fn narrow_reconstruction(
+    layout: &CoefficientLayout,
+    header: &Header,
+    source: ArithmeticDecoder<'_>,
+    options: &DecodeOptions,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Option<Reconstruction> {
+    let top_plane = header.top_plane.map(u32::from);
+    let decoder =
+        Decoder::<i16>::try_run_from(layout, header.coder, source, top_plane, options.max_passes)?;
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    let mut coefficients = decoder.integer_coefficients();
+    let (width, height) = (header.width as usize, header.height as usize);
+    if !wavelet::inverse_53_i16(&mut coefficients, width, height, header.levels as u32) {
+        return None;
+    }
+    let (mapping, nodata) = (header.mapping, header.nodata);
+    Some(Reconstruction {
+        samples: integer_samples(header.sample_type, coefficients, mapping, mask, nodata),
+        passes_decoded,
+        complete,
+        significance: None,
+    })
+}
+
+/// The range decoder over the stream's payload, read in place.
+fn payload_source<'a>(
+    sections: &StreamSections<'a>,
+    payload_complete: bool,
+) -> ArithmeticDecoder<'a> {
+    ArithmeticDecoder::new_framed(
+        sections.payload_framed,
+        sections.payload_check.data_len,
+        CHUNK,
+        4,
+        payload_complete,
+    )
 }
 
 /// The decoded coefficients through the inverse transform to samples. In place: the

@@ -55,37 +55,43 @@ pub(crate) fn to_samples<X: Copy>(
     samples
 }
 
+/// Whether `mapping` is `q + offset` with a whole offset, so that [`integer_samples`]
+/// computes in integers (|q| < 2^31 and |offset| ≤ 2^40 keep `offset + q` far inside
+/// f64's 2^53).
+pub(crate) fn whole_offset(mapping: ValueMapping) -> bool {
+    mapping.step == 1.0
+        && mapping.offset.fract() == 0.0
+        && mapping.offset.abs() <= (1u64 << 40) as f64
+}
+
 /// [`to_samples`] of the 5/3 path's integers `q`, whose samples are `mapping.value(q)`.
 /// When the mapping is `q + offset` with a whole offset (integer rasters coded exactly),
 /// the samples are computed in integers: that sum is exact in `f64` too, so the result
-/// is the same, at a fraction of the cost.
-pub(crate) fn integer_samples(
+/// is the same, at a fraction of the cost (and in place when `V` is as wide as the
+/// samples).
+pub(crate) fn integer_samples<V: Copy + Into<i32>>(
     sample_type: SampleType,
-    values: Vec<i32>,
+    values: Vec<V>,
     mapping: ValueMapping,
     mask: Option<&BitSlice<u64, Lsb0>>,
     nodata: Option<f64>,
 ) -> Samples {
-    let general = |values| {
+    let general = |values: Vec<V>| {
         to_samples(
             sample_type,
-            values,
+            values.into_iter().map(Into::into).collect::<Vec<i32>>(),
             |q| mapping.value(q as f64),
             mask,
             nodata,
         )
     };
-    // |q| < 2^31 and |offset| ≤ 2^40 keep `offset + q` far inside f64's 2^53.
-    let whole_offset = mapping.step == 1.0
-        && mapping.offset.fract() == 0.0
-        && mapping.offset.abs() <= (1u64 << 40) as f64;
-    if !whole_offset {
+    if !whole_offset(mapping) {
         return general(values);
     }
     let offset = mapping.offset as i64;
     let (lo, hi) = sample_type.value_range();
     let (lo, hi) = (lo as i64, hi as i64);
-    let int = move |q: i32| (i64::from(q) + offset).clamp(lo, hi);
+    let int = move |q: V| (i64::from(q.into()) + offset).clamp(lo, hi);
     let values_in = values.into_iter();
     let mut samples = match sample_type {
         SampleType::U8 => Samples::U8(values_in.map(|q| int(q) as u8).collect()),

@@ -80,12 +80,9 @@ impl Output {
                     .tile(k)
                     .intersection(&self.window)
                     .expect("a tile the window touches");
-                let piece =
-                    decoded
-                        .raster
-                        .crop(part.x - area.x, part.y - area.y, part.width, part.height);
-                self.raster
-                    .paste(part.x - self.window.x, part.y - self.window.y, &piece);
+                let from = (part.x - area.x, part.y - area.y, part.width, part.height);
+                let (x, y) = (part.x - self.window.x, part.y - self.window.y);
+                self.raster.paste_part(x, y, &decoded.raster, from);
                 self.passes = Some(
                     self.passes
                         .map_or(decoded.passes_decoded, |p| p.min(decoded.passes_decoded)),

@@ -509,11 +509,14 @@ fn cut_recoded(
 /// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
 /// it needs: the header and index, then for each tile the window touches the prefix
 /// [`allocate()`] gives it under `options.max_bytes` (all of it without a budget).
+/// `before_output` runs once, before the window's samples are allocated (after the first
+/// tiles are decoded).
 pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
     window: Option<Window>,
     options: &DecodeOptions,
+    before_output: &mut dyn FnMut(),
 ) -> Result<Decoded, CodecError> {
     let header = &layout.header;
     let whole = Window {
@@ -534,7 +537,8 @@ pub(crate) fn decode_layout(
     let workers = Workers::new(options.threads)?;
     check_memory(layout, &window, options, workers.count())?;
     let lengths = tile_lengths(layout, options.max_bytes)?;
-    let mut output = decode::Output::new(header, window);
+    // Made once the first tiles are decoded: not beside their decoders.
+    let mut output = None;
     for row in 0..layout.grid.rows() {
         let wanted: Vec<usize> = layout
             .grid
@@ -549,10 +553,18 @@ pub(crate) fn decode_layout(
             fetched.push((k, bytes));
         }
         let decoded = workers.map(0..fetched.len(), |i| decode::tile(&fetched[i].1, options));
+        let output = output.get_or_insert_with(|| {
+            before_output();
+            decode::Output::new(header, window)
+        });
         for ((k, bytes), result) in fetched.iter().zip(decoded) {
             output.place(*k, layout, bytes.len() as u64, result, options.strict)?;
         }
     }
+    let output = output.unwrap_or_else(|| {
+        before_output();
+        decode::Output::new(header, window)
+    });
     Ok(output.finish(layout))
 }
 
