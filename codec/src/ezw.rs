@@ -1199,8 +1199,8 @@ impl Decoder {
         Decoder::run_from(layout, coder, source, top_plane, max_passes)
     }
 
-    /// As `Decoder::run` (tests and the `internals` feature), reading the payload through `source` (e.g. a decoder over a
-    /// framed section, read in place).
+    /// As `Decoder::run` (tests and the `internals` feature), reading the payload
+    /// through `source` (e.g. a decoder over a framed section, read in place).
     pub fn run_from(
         layout: &CoefficientLayout,
         coder: Coder,
