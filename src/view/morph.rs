@@ -110,7 +110,7 @@ impl MorphScratch {
             });
         }
         let motion = self.last.map_or(f64::INFINITY, |last| {
-            camera_motion(&last, view, &self.extent)
+            camera_motion(&last, view, &self.extent, f64::INFINITY)
         });
         self.last = Some(*view);
         let levels = terrain.levels() as usize;

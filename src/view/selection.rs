@@ -122,6 +122,8 @@ pub struct NodeView {
     /// Largest horizontal distance from the eye to the box, at least
     /// [`MIN_FORESHORTENING`] times the largest distance.
     pub reach: f64,
+    /// Largest horizontal distance from the eye to the box.
+    pub horizontal: f64,
     /// Lower bound on the depth of the box's points in view ([`View::seen_depth`]).
     pub depth: f64,
     /// The box's [`View::frustum_clearance`].
@@ -253,13 +255,14 @@ impl<'a> ViewTerrain<'a> {
         let margin = 0.5 * lo.distance(hi);
         let clearance = view.frustum_clearance(lo, hi);
         let frustum = (1.0 + clearance.min(0.0) / margin.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        let horizontal = horizontal_reach(eye, lo, hi);
         let mut node = NodeView {
             ratio: 0.0,
             frustum,
             margin,
             weight: 0.0,
-            reach: horizontal_reach(eye, lo, hi)
-                .max(MIN_FORESHORTENING * farthest_distance(eye, lo, hi)),
+            reach: horizontal.max(MIN_FORESHORTENING * farthest_distance(eye, lo, hi)),
+            horizontal,
             depth: view.seen_depth(lo, hi, box_distance(eye, lo, hi)),
             clearance,
         };
