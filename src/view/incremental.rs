@@ -37,7 +37,7 @@ use crate::mesh::cells::{Cell, CellTree};
 
 /// Leaves per block of the leaf list: an update copies a block whose earliest expiry is
 /// still ahead as it is, without looking at its leaves.
-const BLOCK: usize = 64;
+const BLOCK: usize = 16;
 
 /// A selection kept from frame to frame.
 #[derive(Debug)]
@@ -48,6 +48,9 @@ pub struct Incremental {
     current: Leaves,
     /// The ping-pong buffers the next frame is written to.
     spare: Leaves,
+    /// The positions and cells of the leaves an update looks at again (kept for its
+    /// allocation).
+    expired: Vec<(usize, Cell)>,
     /// Camera motion accumulated since the first frame (see [`camera_motion`]).
     travelled: f64,
     last: View,
@@ -103,6 +106,13 @@ impl Expiry {
     fn earliest(self) -> f64 {
         f64::from(self.own.min(self.parent))
     }
+
+    /// The bits of the earlier expiry: expiries are never negative (nor NaN), and the
+    /// bits of such `f32`s order as their values do.
+    #[inline]
+    fn earliest_bits(self) -> u32 {
+        self.own.to_bits().min(self.parent.to_bits())
+    }
 }
 
 /// The largest `f32` at most `x`.
@@ -157,34 +167,45 @@ impl Leaves {
         self.expiry.pop();
     }
 
-    /// The leaves from `start` on whose expiries are all after `travelled`, up to the end
-    /// of `start`'s block at most: the end of that run and a lower bound on its expiries.
-    fn unexpired_run(&self, start: usize, travelled: f64) -> (usize, f64) {
-        let block = start / BLOCK;
-        let block_end = ((block + 1) * BLOCK).min(self.cells.len());
-        if start.is_multiple_of(BLOCK) && self.block_expiry[block] > travelled {
-            return (block_end, self.block_expiry[block]);
-        }
-        let mut bound = f64::INFINITY;
-        for (k, expiry) in self.expiry[start..block_end].iter().enumerate() {
-            let until = expiry.earliest();
-            if until <= travelled {
-                return (start + k, bound);
+    /// The positions and cells of the leaves whose expiries are at most `travelled`
+    /// (blocks whose bound is ahead are not looked at), in order, into `out`.
+    fn expired(&self, travelled: f64, out: &mut Vec<(usize, Cell)>) {
+        out.clear();
+        // An `f32` is at most `travelled` exactly when it is at most its rounding down.
+        let now = round_down(travelled).to_bits();
+        for (block, &bound) in self.block_expiry.iter().enumerate() {
+            if bound > travelled {
+                continue;
             }
-            bound = bound.min(until);
+            let start = block * BLOCK;
+            let end = (start + BLOCK).min(self.cells.len());
+            for (k, expiry) in self.expiry[start..end].iter().enumerate() {
+                if expiry.earliest_bits() <= now {
+                    out.push((start + k, self.cells[start + k]));
+                }
+            }
         }
-        (block_end, bound)
     }
 
-    /// Appends `cells` with expiries `expiry`, none earlier than `bound`.
-    fn extend(&mut self, cells: &[Cell], expiry: &[Expiry], bound: f64) {
-        let start = self.cells.len();
+    /// Appends `cells` with expiries `expiry`, keeping each block's bound its smallest.
+    fn extend(&mut self, cells: &[Cell], expiry: &[Expiry]) {
+        let mut at = self.cells.len();
         self.cells.extend_from_slice(cells);
         self.expiry.extend_from_slice(expiry);
-        let last = (self.cells.len() - 1) / BLOCK;
-        self.block_expiry.resize(last + 1, f64::INFINITY);
-        for block in &mut self.block_expiry[start / BLOCK..=last] {
-            *block = block.min(bound);
+        while at < self.cells.len() {
+            let block = at / BLOCK;
+            let end = ((block + 1) * BLOCK).min(self.cells.len());
+            let bits = self.expiry[at..end]
+                .iter()
+                .fold(u32::MAX, |b, e| b.min(e.earliest_bits()));
+            let bound = f64::from(f32::from_bits(bits));
+            if block == self.block_expiry.len() {
+                self.block_expiry.push(bound);
+            } else {
+                let kept = &mut self.block_expiry[block];
+                *kept = kept.min(bound);
+            }
+            at = end;
         }
     }
 }
@@ -194,6 +215,10 @@ const TURN_QUANTILE: f64 = 0.5;
 
 /// One leaf in this many is looked at to choose the turn reach.
 const REACH_SAMPLE: usize = 16;
+
+/// How many leaves to be looked at ahead an update asks for their node's summary, so
+/// that its evaluation does not wait on memory.
+const PREFETCH_AHEAD: usize = 8;
 
 /// Slack safety factor: decisions are re-evaluated slightly before the bound says.
 const SAFETY: f64 = 0.999;
@@ -220,6 +245,7 @@ impl Incremental {
             tree: terrain.select(view, rule),
             current: Leaves::default(),
             spare: Leaves::default(),
+            expired: Vec::new(),
             travelled: 0.0,
             last: *view,
             extent,
@@ -288,28 +314,34 @@ impl Incremental {
         let mut new = std::mem::take(&mut self.spare);
         new.clear();
         let mut stats = UpdateStats::default();
+        let mut expired = std::mem::take(&mut self.expired);
+        old.expired(self.travelled, &mut expired);
         let mut k = 0;
-        while k < old.cells.len() {
-            let (end, bound) = old.unexpired_run(k, self.travelled);
-            if end > k {
-                new.extend(&old.cells[k..end], &old.expiry[k..end], bound);
-                k = end;
+        for (n, &(e, _)) in expired.iter().enumerate() {
+            if let Some(&(_, ahead)) = expired.get(n + PREFETCH_AHEAD) {
+                terrain.prefetch(ahead);
+            }
+            if e < k {
+                // Merged into an earlier leaf.
                 continue;
             }
+            new.extend(&old.cells[k..e], &old.expiry[k..e]);
             stats.revisited += 1;
             self.revisit(
                 terrain,
                 view,
-                (old.cells[k], old.expiry[k]),
+                (old.cells[e], old.expiry[e]),
                 &mut new,
                 &mut stats,
             );
-            k += 1;
+            k = e + 1;
             // A merge writes a cell holding the next old leaves (a depth-first run).
             while k < old.cells.len() && new.last().is_some_and(|l| contains(l, old.cells[k])) {
                 k += 1;
             }
         }
+        new.extend(&old.cells[k..], &old.expiry[k..]);
+        self.expired = expired;
         self.tree.swap_leaves(&mut new.cells);
         new.cells.clear();
         self.current = new;
@@ -761,11 +793,7 @@ mod tests {
             if round % 2 == 0 {
                 let cells: Vec<Cell> = chunk.iter().map(|c| c.0).collect();
                 let expiry: Vec<Expiry> = chunk.iter().map(|c| c.1).collect();
-                let bound = expiry
-                    .iter()
-                    .map(|e| e.earliest())
-                    .fold(f64::INFINITY, f64::min);
-                leaves.extend(&cells, &expiry, bound);
+                leaves.extend(&cells, &expiry);
             } else {
                 for &(cell, expiry) in chunk {
                     leaves.push(cell, expiry);
@@ -782,13 +810,16 @@ mod tests {
                 "leaf {k}"
             );
         }
-        // And a run read back stops at the first expired leaf.
+        // And the leaves found expired are exactly those at or before the motion.
         let travelled = leaves.expiry[10].earliest();
-        let (end, bound) = leaves.unexpired_run(0, travelled);
-        assert!(leaves.expiry[..end]
-            .iter()
-            .all(|e| e.earliest() > travelled));
-        assert!(end == BLOCK || leaves.expiry[end].earliest() <= travelled);
-        assert!(leaves.expiry[..end].iter().all(|e| e.earliest() >= bound));
+        let mut expired = Vec::new();
+        leaves.expired(travelled, &mut expired);
+        let exact: Vec<usize> = (0..leaves.cells.len())
+            .filter(|&k| leaves.expiry[k].earliest() <= travelled)
+            .collect();
+        let positions: Vec<usize> = expired.iter().map(|e| e.0).collect();
+        assert!(positions.contains(&10));
+        assert_eq!(positions, exact);
+        assert!(expired.iter().all(|&(k, cell)| leaves.cells[k] == cell));
     }
 }
