@@ -116,7 +116,7 @@ impl Expiry {
 }
 
 /// The largest `f32` at most `x`.
-fn round_down(x: f64) -> f32 {
+pub(super) fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if f64::from(f) > x {
         f.next_down()
