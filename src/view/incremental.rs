@@ -32,7 +32,7 @@
 //! frame.
 
 use super::camera::View;
-use super::selection::{NodeView, Rule, ViewTerrain};
+use super::selection::{prefetch_read, NodeView, Rule, ViewTerrain};
 use crate::mesh::cells::{Cell, CellTree};
 
 /// Leaves per block of the leaf list: an update copies a block whose earliest expiry is
@@ -48,9 +48,8 @@ pub struct Incremental {
     current: Leaves,
     /// The ping-pong buffers the next frame is written to.
     spare: Leaves,
-    /// The positions and cells of the leaves an update looks at again (kept for its
-    /// allocation).
-    expired: Vec<(usize, Cell)>,
+    /// The positions of the leaves an update looks at again (kept for its allocation).
+    expired: Vec<usize>,
     /// Camera motion accumulated since the first frame (see [`camera_motion`]).
     travelled: f64,
     last: View,
@@ -167,9 +166,9 @@ impl Leaves {
         self.expiry.pop();
     }
 
-    /// The positions and cells of the leaves whose expiries are at most `travelled`
-    /// (blocks whose bound is ahead are not looked at), in order, into `out`.
-    fn expired(&self, travelled: f64, out: &mut Vec<(usize, Cell)>) {
+    /// The positions of the leaves whose expiries are at most `travelled` (blocks whose
+    /// bound is ahead are not looked at), in order, into `out`.
+    fn expired(&self, travelled: f64, out: &mut Vec<usize>) {
         out.clear();
         // An `f32` is at most `travelled` exactly when it is at most its rounding down.
         let now = round_down(travelled).to_bits();
@@ -181,7 +180,7 @@ impl Leaves {
             let end = (start + BLOCK).min(self.cells.len());
             for (k, expiry) in self.expiry[start..end].iter().enumerate() {
                 if expiry.earliest_bits() <= now {
-                    out.push((start + k, self.cells[start + k]));
+                    out.push(start + k);
                 }
             }
         }
@@ -317,9 +316,13 @@ impl Incremental {
         let mut expired = std::mem::take(&mut self.expired);
         old.expired(self.travelled, &mut expired);
         let mut k = 0;
-        for (n, &(e, _)) in expired.iter().enumerate() {
-            if let Some(&(_, ahead)) = expired.get(n + PREFETCH_AHEAD) {
-                terrain.prefetch(ahead);
+        for (n, &e) in expired.iter().enumerate() {
+            // Two stages: the leaf's cell, then (once it has arrived) its summaries.
+            if let Some(&far) = expired.get(n + 2 * PREFETCH_AHEAD) {
+                prefetch_read(&old.cells[far]);
+            }
+            if let Some(&ahead) = expired.get(n + PREFETCH_AHEAD) {
+                terrain.prefetch(old.cells[ahead]);
             }
             if e < k {
                 // Merged into an earlier leaf.
@@ -817,9 +820,7 @@ mod tests {
         let exact: Vec<usize> = (0..leaves.cells.len())
             .filter(|&k| leaves.expiry[k].earliest() <= travelled)
             .collect();
-        let positions: Vec<usize> = expired.iter().map(|e| e.0).collect();
-        assert!(positions.contains(&10));
-        assert_eq!(positions, exact);
-        assert!(expired.iter().all(|&(k, cell)| leaves.cells[k] == cell));
+        assert!(expired.contains(&10));
+        assert_eq!(expired, exact);
     }
 }

@@ -366,7 +366,7 @@ impl<'a> ViewTerrain<'a> {
 
 /// Hints the processor to load `value`'s cache line (no effect off x86-64).
 #[inline]
-fn prefetch_read<T>(value: &T) {
+pub(super) fn prefetch_read<T>(value: &T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch never faults nor writes; the pointer comes from a reference.
     unsafe {
