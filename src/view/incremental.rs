@@ -11,13 +11,13 @@
 //!
 //! Why a leaf is looked at again before its decision can change: a node's ratio is a
 //! function of its box distance, horizontal reach, depth and frustum-plane distances, and
-//! its slack ([`Incremental::stay_unsplit`], [`stays_above`]) is how far all of those may
+//! its slack (`Incremental::stay_unsplit`, `stays_above`) is how far all of those may
 //! move together before the ratio can cross 1. In a frame those move by at most the eye's
 //! displacement plus the turn times the node's horizontal reach `h` plus the change of
 //! pitch times its distance ([`camera_motion`]'s proof), which is at most the frame's
 //! measure times `max(1, h / L)`; `h` grows by no more than the eye moves, so over
 //! accumulated motion `x` the node moves by at most `x · max(1, (h₀ + x) / L)`, and the
-//! expiry is set where that reaches the slack ([`allowance`], then a 0.999 safety
+//! expiry is set where that reaches the slack (`allowance`, then a 0.999 safety
 //! factor). Near leaves, those that expire, count turns at their own reach rather than
 //! the farthest corner's; farther ones pay for it with an earlier expiry.
 //!
