@@ -16,7 +16,8 @@
 //! Selection plus morphing a frame is incremental update + morph (+ triangulate to get
 //! the mesh the morph reads). Before criterion runs, each terrain prints its frame, the
 //! leaves 20 updates revisited, fingerprints of the morph output and of the leaves after
-//! those updates (equal before and after a change that keeps the output), and the CPU
+//! those updates (equal before and after a change that keeps the output), the heap the
+//! morph keeps from frame to frame ([`MorphScratch::heap_bytes`]), and the CPU
 //! time a call of each measurement (the machine is shared: wall-clock medians count the
 //! time others hold the core). Run:
 //!
@@ -202,6 +203,10 @@ fn bench_terrain(c: &mut Criterion, name: &str, raster: Raster) {
         let (view, tree, mesh) = frames[usize::from(flip)];
         black_box(morph(&terrain, view, rule, tree, mesh, &mut flight_scratch));
     });
+    eprintln!(
+        "{name} morph state (MorphScratch): {:.1} MB",
+        flight_scratch.heap_bytes() as f64 / 1e6
+    );
     print_cpu_time(&format!("{name} triangulate"), 8, || {
         black_box(terrain.triangulate(&tree));
     });

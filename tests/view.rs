@@ -157,6 +157,45 @@ proptest! {
     }
 }
 
+/// A camera at `eye` looking along heading `heading` and pitch `pitch` (radians).
+fn aimed(eye: DVec3, heading: f64, pitch: f64) -> View {
+    let look = eye
+        + DVec3::new(
+            heading.cos() * pitch.cos(),
+            heading.sin() * pitch.cos(),
+            pitch.sin(),
+        );
+    Camera::new(eye, look, 60.0, (320, 180)).unwrap().view()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// Random camera paths that move, turn and pitch by random steps each frame, now and
+    /// then looking straight down: the incremental selection equals the rebuild every frame.
+    #[test]
+    fn random_camera_paths_equal_the_rebuild(
+        side in 20usize..90, seed in any::<u64>(), voids in any::<bool>(), tau in 0.3f64..3.0,
+        steps in proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0, -0.05f64..0.05, -0.05f64..0.05, 0u8..12), 2..14),
+    ) {
+        let decoded = decode_with_map(&terrain(side, side, seed, voids));
+        let terrain = decoded.terrain();
+        let rule = Rule::ScreenSpace { tau };
+        let mut eye = DVec3::new(side as f64 * 0.2, side as f64 * 0.3, 30.0);
+        let (mut heading, mut pitch) = (0.6f64, -0.6f64);
+        let mut incremental = Incremental::new(&terrain, &aimed(eye, heading, pitch), rule);
+        for (f, &(dx, dy, dz, turn, tilt, down)) in steps.iter().enumerate() {
+            eye += DVec3::new(dx, dy, dz * 0.5);
+            heading += turn;
+            pitch = (pitch + tilt).clamp(-1.5, 0.3);
+            let view = if down == 0 { aimed(eye, heading, -std::f64::consts::FRAC_PI_2) } else { aimed(eye, heading, pitch) };
+            incremental.update(&terrain, &view);
+            let rebuilt = terrain.select(&view, rule);
+            prop_assert!(incremental.tree().leaves() == rebuilt.leaves(), "frame {}: incremental differs from the rebuild", f);
+        }
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(12))]
 

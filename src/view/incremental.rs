@@ -3,26 +3,41 @@
 //! only leaves whose decision may have changed instead of descending from the roots.
 //!
 //! Each leaf carries two *expiries*: how far the camera may travel before the leaf could
-//! need a split, and before its parent could need a merge, in one measure of motion accumulated frame after
-//! frame (see [`camera_motion`]): the eye's displacement plus the rotation angle times the
-//! farthest terrain corner, which bounds how far any box distance, horizontal reach,
-//! depth or frustum-plane distance moves. Those bound how much any node's ratio can
-//! change; leaves whose expiries are still ahead are copied as they are. For the others,
-//! what expired is evaluated again (the parent, the leaf, or both): a leaf whose parent
-//! no longer splits merges up to the highest such ancestor, a leaf that now splits is
-//! refined from there down. The leaves are kept in
-//! blocks of [`BLOCK`] with a lower bound on their expiries, so a block none of whose
-//! leaves can have changed is copied whole without looking at them. The result equals
-//! [`ViewTerrain::select`] for the same camera (the property tests check it frame after
-//! frame). The area rule has no such bound: every leaf is evaluated again each frame.
+//! need a split, and before its parent could need a merge, in one measure of motion
+//! accumulated frame after frame (see [`camera_motion`]): the eye's displacement, plus
+//! the change of heading times the horizontal distance up to which turns are counted
+//! (the turn reach `L`, about the median of the leaves in view), plus the change of pitch
+//! times the farthest terrain corner.
+//!
+//! Why a leaf is looked at again before its decision can change: a node's ratio is a
+//! function of its box distance, horizontal reach, depth and frustum-plane distances, and
+//! its slack (`Incremental::stay_unsplit`, `stays_above`) is how far all of those may
+//! move together before the ratio can cross 1. In a frame those move by at most the eye's
+//! displacement plus the turn times the node's horizontal reach `h` plus the change of
+//! pitch times its distance ([`camera_motion`]'s proof), which is at most the frame's
+//! measure times `max(1, h / L)`; `h` grows by no more than the eye moves, so over
+//! accumulated motion `x` the node moves by at most `x · max(1, (h₀ + x) / L)`, and the
+//! expiry is set where that reaches the slack (`allowance`, then a 0.999 safety
+//! factor). Near leaves, those that expire, count turns at their own reach rather than
+//! the farthest corner's; farther ones pay for it with an earlier expiry.
+//!
+//! Leaves whose expiries are still ahead are copied as they are. For the others, what
+//! expired is evaluated again (the parent, the leaf, or both): a leaf whose parent no
+//! longer splits merges up to the highest such ancestor, a leaf that now splits is
+//! refined from there down. The leaves are kept in blocks of [`BLOCK`] with a lower bound
+//! on their expiries, so a block none of whose leaves can have changed is copied whole
+//! without looking at them. The result equals [`ViewTerrain::select`] for the same camera
+//! (the property tests check it frame after frame, on paths that turn, pitch and look
+//! straight down). The area rule has no such bound: every leaf is evaluated again each
+//! frame.
 
 use super::camera::View;
-use super::selection::{NodeView, Rule, ViewTerrain};
+use super::selection::{prefetch_read, NodeView, Rule, ViewTerrain};
 use crate::mesh::cells::{Cell, CellTree};
 
 /// Leaves per block of the leaf list: an update copies a block whose earliest expiry is
 /// still ahead as it is, without looking at its leaves.
-const BLOCK: usize = 64;
+const BLOCK: usize = 16;
 
 /// A selection kept from frame to frame.
 #[derive(Debug)]
@@ -33,11 +48,17 @@ pub struct Incremental {
     current: Leaves,
     /// The ping-pong buffers the next frame is written to.
     spare: Leaves,
+    /// The positions of the leaves an update looks at again (kept for its allocation).
+    expired: Vec<usize>,
     /// Camera motion accumulated since the first frame (see [`camera_motion`]).
     travelled: f64,
     last: View,
     /// Corners of the terrain's bounding box.
     extent: [glam::DVec3; 8],
+    /// Up to which horizontal distance turns are counted in the motion (see
+    /// [`allowance`]): chosen when the expiries are set, the [`TURN_QUANTILE`] of the
+    /// horizontal reaches of the leaves in view.
+    turn_reach: f64,
     /// The last parent evaluated under the current view: a parent's leaves come one after
     /// another, so it is evaluated once for all of them. Cleared when the view changes.
     last_parent: std::cell::Cell<Option<(Cell, NodeView)>>,
@@ -84,10 +105,17 @@ impl Expiry {
     fn earliest(self) -> f64 {
         f64::from(self.own.min(self.parent))
     }
+
+    /// The bits of the earlier expiry: expiries are never negative (nor NaN), and the
+    /// bits of such `f32`s order as their values do.
+    #[inline]
+    fn earliest_bits(self) -> u32 {
+        self.own.to_bits().min(self.parent.to_bits())
+    }
 }
 
 /// The largest `f32` at most `x`.
-fn round_down(x: f64) -> f32 {
+pub(super) fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if f64::from(f) > x {
         f.next_down()
@@ -138,37 +166,58 @@ impl Leaves {
         self.expiry.pop();
     }
 
-    /// The leaves from `start` on whose expiries are all after `travelled`, up to the end
-    /// of `start`'s block at most: the end of that run and a lower bound on its expiries.
-    fn unexpired_run(&self, start: usize, travelled: f64) -> (usize, f64) {
-        let block = start / BLOCK;
-        let block_end = ((block + 1) * BLOCK).min(self.cells.len());
-        if start.is_multiple_of(BLOCK) && self.block_expiry[block] > travelled {
-            return (block_end, self.block_expiry[block]);
-        }
-        let mut bound = f64::INFINITY;
-        for (k, expiry) in self.expiry[start..block_end].iter().enumerate() {
-            let until = expiry.earliest();
-            if until <= travelled {
-                return (start + k, bound);
+    /// The positions of the leaves whose expiries are at most `travelled` (blocks whose
+    /// bound is ahead are not looked at), in order, into `out`.
+    fn expired(&self, travelled: f64, out: &mut Vec<usize>) {
+        out.clear();
+        // An `f32` is at most `travelled` exactly when it is at most its rounding down.
+        let now = round_down(travelled).to_bits();
+        for (block, &bound) in self.block_expiry.iter().enumerate() {
+            if bound > travelled {
+                continue;
             }
-            bound = bound.min(until);
+            let start = block * BLOCK;
+            let end = (start + BLOCK).min(self.cells.len());
+            for (k, expiry) in self.expiry[start..end].iter().enumerate() {
+                if expiry.earliest_bits() <= now {
+                    out.push(start + k);
+                }
+            }
         }
-        (block_end, bound)
     }
 
-    /// Appends `cells` with expiries `expiry`, none earlier than `bound`.
-    fn extend(&mut self, cells: &[Cell], expiry: &[Expiry], bound: f64) {
-        let start = self.cells.len();
+    /// Appends `cells` with expiries `expiry`, keeping each block's bound its smallest.
+    fn extend(&mut self, cells: &[Cell], expiry: &[Expiry]) {
+        let mut at = self.cells.len();
         self.cells.extend_from_slice(cells);
         self.expiry.extend_from_slice(expiry);
-        let last = (self.cells.len() - 1) / BLOCK;
-        self.block_expiry.resize(last + 1, f64::INFINITY);
-        for block in &mut self.block_expiry[start / BLOCK..=last] {
-            *block = block.min(bound);
+        while at < self.cells.len() {
+            let block = at / BLOCK;
+            let end = ((block + 1) * BLOCK).min(self.cells.len());
+            let bits = self.expiry[at..end]
+                .iter()
+                .fold(u32::MAX, |b, e| b.min(e.earliest_bits()));
+            let bound = f64::from(f32::from_bits(bits));
+            if block == self.block_expiry.len() {
+                self.block_expiry.push(bound);
+            } else {
+                let kept = &mut self.block_expiry[block];
+                *kept = kept.min(bound);
+            }
+            at = end;
         }
     }
 }
+
+/// Which quantile of the leaves' horizontal reaches turns are counted up to.
+const TURN_QUANTILE: f64 = 0.5;
+
+/// One leaf in this many is looked at to choose the turn reach.
+const REACH_SAMPLE: usize = 16;
+
+/// How many leaves to be looked at ahead an update asks for their node's summary, so
+/// that its evaluation does not wait on memory.
+const PREFETCH_AHEAD: usize = 8;
 
 /// Slack safety factor: decisions are re-evaluated slightly before the bound says.
 const SAFETY: f64 = 0.999;
@@ -195,9 +244,11 @@ impl Incremental {
             tree: terrain.select(view, rule),
             current: Leaves::default(),
             spare: Leaves::default(),
+            expired: Vec::new(),
             travelled: 0.0,
             last: *view,
             extent,
+            turn_reach: f64::INFINITY,
             last_parent: std::cell::Cell::new(None),
         };
         state.reset_expiry(terrain, view);
@@ -211,6 +262,7 @@ impl Incremental {
 
     fn reset_expiry(&mut self, terrain: &ViewTerrain<'_>, view: &View) {
         self.last_parent.set(None);
+        self.turn_reach = self.typical_reach(terrain, view);
         let mut fresh = Leaves::default();
         for &cell in self.tree.leaves() {
             fresh.push(cell, self.leaf_expiry(terrain, view, cell, None));
@@ -220,9 +272,29 @@ impl Incremental {
         self.current = fresh;
     }
 
+    /// The [`TURN_QUANTILE`] of the horizontal reaches of the leaves in view (every
+    /// [`REACH_SAMPLE`]th leaf), infinite when none is in view.
+    fn typical_reach(&self, terrain: &ViewTerrain<'_>, view: &View) -> f64 {
+        let mut reaches: Vec<f64> = self
+            .tree
+            .leaves()
+            .iter()
+            .step_by(REACH_SAMPLE)
+            .filter(|c| c.level > 0)
+            .map(|&c| self.evaluate(terrain, view, c))
+            .filter(|n| n.frustum > 0.0)
+            .map(|n| n.horizontal)
+            .collect();
+        if reaches.is_empty() {
+            return f64::INFINITY;
+        }
+        let k = ((reaches.len() - 1) as f64 * TURN_QUANTILE) as usize;
+        *reaches.select_nth_unstable_by(k, f64::total_cmp).1
+    }
+
     /// Moves the selection to `view`.
     pub fn update(&mut self, terrain: &ViewTerrain<'_>, view: &View) -> UpdateStats {
-        let motion = camera_motion(&self.last, view, &self.extent);
+        let motion = camera_motion(&self.last, view, &self.extent, self.turn_reach);
         self.last = *view;
         self.last_parent.set(None);
         if !motion.is_finite() {
@@ -241,28 +313,38 @@ impl Incremental {
         let mut new = std::mem::take(&mut self.spare);
         new.clear();
         let mut stats = UpdateStats::default();
+        let mut expired = std::mem::take(&mut self.expired);
+        old.expired(self.travelled, &mut expired);
         let mut k = 0;
-        while k < old.cells.len() {
-            let (end, bound) = old.unexpired_run(k, self.travelled);
-            if end > k {
-                new.extend(&old.cells[k..end], &old.expiry[k..end], bound);
-                k = end;
+        for (n, &e) in expired.iter().enumerate() {
+            // Two stages: the leaf's cell, then (once it has arrived) its summaries.
+            if let Some(&far) = expired.get(n + 2 * PREFETCH_AHEAD) {
+                prefetch_read(&old.cells[far]);
+            }
+            if let Some(&ahead) = expired.get(n + PREFETCH_AHEAD) {
+                terrain.prefetch(old.cells[ahead]);
+            }
+            if e < k {
+                // Merged into an earlier leaf.
                 continue;
             }
+            new.extend(&old.cells[k..e], &old.expiry[k..e]);
             stats.revisited += 1;
             self.revisit(
                 terrain,
                 view,
-                (old.cells[k], old.expiry[k]),
+                (old.cells[e], old.expiry[e]),
                 &mut new,
                 &mut stats,
             );
-            k += 1;
+            k = e + 1;
             // A merge writes a cell holding the next old leaves (a depth-first run).
             while k < old.cells.len() && new.last().is_some_and(|l| contains(l, old.cells[k])) {
                 k += 1;
             }
         }
+        new.extend(&old.cells[k..], &old.expiry[k..]);
+        self.expired = expired;
         self.tree.swap_leaves(&mut new.cells);
         new.cells.clear();
         self.current = new;
@@ -309,9 +391,7 @@ impl Incremental {
             stats.split += 1;
             self.refine(terrain, view, (cell, own), leaves);
         } else {
-            let own = own.map_or(f64::INFINITY, |o| {
-                after(self.travelled, self.stay_unsplit(o))
-            });
+            let own = own.map_or(f64::INFINITY, |o| self.until(self.stay_unsplit(o), &o));
             leaves.push(cell, Expiry::new(own, parent));
         }
     }
@@ -357,14 +437,13 @@ impl Incremental {
         leaves: &mut Leaves,
     ) {
         self.tree.set_split(cell, true);
-        let parent_slack = self.stay_split(terrain, cell, parent_view);
+        let parent_until = self.until(self.stay_split(terrain, cell, parent_view), &parent_view);
         for child in children(&self.tree, cell) {
             let (i, j) = child.position();
             let void = terrain.is_void(child.level, i, j);
             if child.level == 0 {
                 if self.tree.is_meshed(child) {
-                    let parent = after(self.travelled, parent_slack);
-                    leaves.push(child, Expiry::new(f64::INFINITY, parent));
+                    leaves.push(child, Expiry::new(f64::INFINITY, parent_until));
                 }
                 continue;
             }
@@ -372,10 +451,7 @@ impl Incremental {
             if void || self.rule.splits(own.ratio) {
                 self.refine(terrain, view, (child, own), leaves);
             } else {
-                let expiry = Expiry::new(
-                    after(self.travelled, self.stay_unsplit(own)),
-                    after(self.travelled, parent_slack),
-                );
+                let expiry = Expiry::new(self.until(self.stay_unsplit(own), &own), parent_until);
                 leaves.push(child, expiry);
             }
         }
@@ -406,15 +482,13 @@ impl Incremental {
         cell: Cell,
         own: Option<NodeView>,
     ) -> Expiry {
-        let own_slack = if cell.level == 0 {
+        let own = if cell.level == 0 {
             f64::INFINITY
         } else {
-            self.stay_unsplit(own.unwrap_or_else(|| self.evaluate(terrain, view, cell)))
+            let node = own.unwrap_or_else(|| self.evaluate(terrain, view, cell));
+            self.until(self.stay_unsplit(node), &node)
         };
-        Expiry::new(
-            after(self.travelled, own_slack),
-            self.parent_expiry(terrain, view, cell),
-        )
+        Expiry::new(own, self.parent_expiry(terrain, view, cell))
     }
 
     /// Until when the parent of leaf `cell` keeps splitting (infinite for a root).
@@ -424,7 +498,16 @@ impl Incremental {
         }
         let parent = parent_of(cell);
         let node = self.evaluate_parent(terrain, view, parent);
-        after(self.travelled, self.stay_split(terrain, parent, node))
+        self.until(self.stay_split(terrain, parent, node), &node)
+    }
+
+    /// The accumulated motion up to which `node`, whose quantities may move by `slack`
+    /// before its decision could change, keeps it: see [`allowance`].
+    fn until(&self, slack: f64, node: &NodeView) -> f64 {
+        after(
+            self.travelled,
+            allowance(slack, node.horizontal, self.turn_reach),
+        )
     }
 
     /// How far the camera may move (in [`camera_motion`]'s measure Δ) before a node that
@@ -507,25 +590,79 @@ fn split_holds(node: NodeView, frustum: f64, shrink: f64) -> f64 {
 
 /// An upper bound on how far box distances, horizontal reaches, depths and
 /// frustum-plane distances (for points of the terrain box `extent`) move from `from` to
-/// `to`: the eye's displacement plus the frame's rotation angle times the farthest
-/// terrain corner. Infinite when the projection changed.
-pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8]) -> f64 {
+/// `to`: the eye's displacement, plus the change of heading times the farthest
+/// horizontal distance to a terrain corner, plus the change of pitch times the farthest
+/// distance to one. Infinite when the projection changed.
+///
+/// Why: distances and reaches do not depend on the camera's frame, and move by at most
+/// the eye's displacement `s`. Depths and plane distances are `n · q`, `q = p − eye` and
+/// `n` a direction fixed in the camera's frame. With z up in both frames, the frame at
+/// heading `h` and pitch `p` is the one at `(h₀, p)` turned by `h − h₀` about the world's
+/// z axis, which is the one at `(h₀, p₀)` turned by `p − p₀` about its right axis; so
+/// `n` turns by `Δh` about z, which moves `n · q` by at most `|Δh|` times `q`'s
+/// horizontal length, then by `Δp`, which moves it by at most `|Δp| · |q|`, and moving
+/// the eye adds at most `s`. When either frame looks straight up or down (its image's
+/// up is not z) the whole rotation angle counts with `|q|`.
+pub fn camera_motion(from: &View, to: &View, extent: &[glam::DVec3; 8], turn_reach: f64) -> f64 {
     if from.camera.fov_degrees != to.camera.fov_degrees
         || from.camera.viewport != to.camera.viewport
     {
         return f64::INFINITY;
     }
     let shift = from.camera.eye.distance(to.camera.eye);
-    let angle = from.rotation_to(to);
-    if angle == 0.0 {
-        return shift;
-    }
-    let reach = extent
+    let (heading, pitch) = match (heading_pitch(from), heading_pitch(to)) {
+        (Some((h0, p0)), Some((h1, p1))) => {
+            let turn = (h1 - h0).rem_euclid(std::f64::consts::TAU);
+            (turn.min(std::f64::consts::TAU - turn), (p1 - p0).abs())
+        }
+        _ => (0.0, from.rotation_to(to)),
+    };
+    let eye = to.camera.eye;
+    let horizontal = extent
         .iter()
-        .map(|p| p.distance(to.camera.eye))
+        .map(|p| (*p - eye).truncate().length())
         .fold(0.0, f64::max);
-    // |n' − n| = 2 sin(θ/2) ≤ θ; a small margin covers rounding in the angle.
-    shift + (angle * 1.001 + 1e-12) * reach
+    let reach = extent.iter().map(|p| p.distance(eye)).fold(0.0, f64::max);
+    // A small margin covers rounding in the angles.
+    let padded = |angle: f64| {
+        if angle == 0.0 {
+            0.0
+        } else {
+            angle * 1.001 + 1e-12
+        }
+    };
+    shift + padded(heading) * horizontal.min(turn_reach) + padded(pitch) * reach
+}
+
+/// How far the camera may move in [`camera_motion`]'s measure, turns counted up to
+/// `turn_reach`, before a node lying within `reach` of the eye horizontally can have
+/// moved `slack` (in distance, reach, depth or frustum-plane distance).
+///
+/// Why: in a frame of measure `μ = s + |Δh|·min(L, H) + |Δp|·R` (`L` = `turn_reach`,
+/// `H` and `R` the terrain's farthest horizontal and full distances), the node moves by
+/// at most `s + |Δh|·h + |Δp|·R` with `h` its own horizontal reach then, so by at most
+/// `μ · max(1, h / L)`. Its reach grows by no more than the eye moves, itself at most
+/// the motion `x` accumulated since, so over `x` the node moves by at most
+/// `x · max(1, (reach + x) / L)`, which stays below `slack` up to the returned `x`.
+pub(super) fn allowance(slack: f64, reach: f64, turn_reach: f64) -> f64 {
+    if slack == f64::INFINITY || reach + slack <= turn_reach {
+        return slack;
+    }
+    // The positive root of x·(reach + x) = slack·L.
+    let root =
+        2.0 * slack * turn_reach / (reach + (reach * reach + 4.0 * slack * turn_reach).sqrt());
+    root.min(slack)
+}
+
+/// The heading (about z, from +x) and pitch (above the horizontal) of `view`'s forward
+/// direction, when its image's up is z's side (not looking straight up or down).
+fn heading_pitch(view: &View) -> Option<(f64, f64)> {
+    let f = view.forward;
+    // As in `Camera::view`, which takes another up vector below this.
+    if f.cross(glam::DVec3::Z).length() < 1e-6 {
+        return None;
+    }
+    Some((f.y.atan2(f.x), f.z.clamp(-1.0, 1.0).asin()))
 }
 
 fn parent_of(cell: Cell) -> Cell {
@@ -554,6 +691,88 @@ fn children(tree: &CellTree, cell: Cell) -> impl Iterator<Item = Cell> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::view::camera::Camera;
+    use glam::DVec3;
+
+    /// Over random pairs of cameras (turning, pitching, rolling onto a view straight
+    /// down, moving), every camera-frame direction's distance to every terrain point moves
+    /// by at most [`camera_motion`], and the bound is not loose for pure turns.
+    #[test]
+    fn camera_motion_bounds_depths_and_plane_distances() {
+        let mut seed = 99u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (lo, hi) = (DVec3::new(0.0, 0.0, -50.0), DVec3::new(400.0, 300.0, 250.0));
+        let extent = [0, 1, 2, 3, 4, 5, 6, 7]
+            .map(|k| DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo));
+        // Pure turns and pure changes of pitch.
+        let mut tightest = [0.0f64; 2];
+        for case in 0..4000 {
+            let eye = DVec3::new(
+                next() * 600.0 - 100.0,
+                next() * 500.0 - 100.0,
+                next() * 400.0,
+            );
+            let look = eye + DVec3::new(next() - 0.5, next() - 0.5, next() - 0.7) * 100.0;
+            let a = Camera::new(eye, look, 50.0, (300, 200)).unwrap().view();
+            let small = if case % 8 < 4 { 0.05 } else { 0.5 };
+            let (eye_b, look_b) = match case % 4 {
+                // A pure turn about the vertical through the eye.
+                0 => {
+                    let t = (next() - 0.5) * small;
+                    let d = look - eye;
+                    let turned = DVec3::new(
+                        d.x * t.cos() - d.y * t.sin(),
+                        d.x * t.sin() + d.y * t.cos(),
+                        d.z,
+                    );
+                    (eye, eye + turned)
+                }
+                // Straight down.
+                1 => (eye, eye - DVec3::Z * 50.0),
+                // A pure change of pitch.
+                3 => {
+                    let d = look - eye;
+                    let flat = d.truncate().length();
+                    let p = d.z.atan2(flat) + (next() - 0.5) * small;
+                    let dir = d.truncate() / flat * p.cos();
+                    (eye, eye + dir.extend(p.sin()) * 100.0)
+                }
+                _ => (
+                    eye + (DVec3::new(next(), next(), next()) - 0.5) * small * 20.0,
+                    look + (DVec3::new(next(), next(), next()) - 0.5) * small * 40.0,
+                ),
+            };
+            let b = Camera::new(eye_b, look_b, 50.0, (300, 200)).unwrap().view();
+            let bound = camera_motion(&a, &b, &extent, f64::INFINITY);
+            let n = DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize();
+            let direction = |v: &View| v.right * n.x + v.up * n.y + v.forward * n.z;
+            let (na, nb) = (direction(&a), direction(&b));
+            let mut moved = 0.0f64;
+            for k in 0..28 {
+                // The corners, where the bound is reached, and points inside.
+                let p = match extent.get(k) {
+                    Some(&corner) => corner,
+                    None => lo + (hi - lo) * DVec3::new(next(), next(), next()),
+                };
+                let change = nb.dot(p - b.camera.eye) - na.dot(p - a.camera.eye);
+                moved = moved.max(change.abs());
+            }
+            assert!(
+                moved <= bound * (1.0 + 1e-9) + 1e-9,
+                "case {case}: {moved} > {bound}"
+            );
+            if case % 4 % 3 == 0 && bound > 0.0 {
+                let pure = case % 4 / 3;
+                tightest[pure] = tightest[pure].max(moved / bound);
+            }
+        }
+        assert!(tightest.iter().all(|&t| t > 0.9), "{tightest:?}");
+    }
 
     /// Every block's bound is at most the earliest expiry of the leaves it holds, through
     /// pushes, pops and whole-run copies.
@@ -577,11 +796,7 @@ mod tests {
             if round % 2 == 0 {
                 let cells: Vec<Cell> = chunk.iter().map(|c| c.0).collect();
                 let expiry: Vec<Expiry> = chunk.iter().map(|c| c.1).collect();
-                let bound = expiry
-                    .iter()
-                    .map(|e| e.earliest())
-                    .fold(f64::INFINITY, f64::min);
-                leaves.extend(&cells, &expiry, bound);
+                leaves.extend(&cells, &expiry);
             } else {
                 for &(cell, expiry) in chunk {
                     leaves.push(cell, expiry);
@@ -598,13 +813,14 @@ mod tests {
                 "leaf {k}"
             );
         }
-        // And a run read back stops at the first expired leaf.
+        // And the leaves found expired are exactly those at or before the motion.
         let travelled = leaves.expiry[10].earliest();
-        let (end, bound) = leaves.unexpired_run(0, travelled);
-        assert!(leaves.expiry[..end]
-            .iter()
-            .all(|e| e.earliest() > travelled));
-        assert!(end == BLOCK || leaves.expiry[end].earliest() <= travelled);
-        assert!(leaves.expiry[..end].iter().all(|e| e.earliest() >= bound));
+        let mut expired = Vec::new();
+        leaves.expired(travelled, &mut expired);
+        let exact: Vec<usize> = (0..leaves.cells.len())
+            .filter(|&k| leaves.expiry[k].earliest() <= travelled)
+            .collect();
+        assert!(expired.contains(&10));
+        assert_eq!(expired, exact);
     }
 }

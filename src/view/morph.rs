@@ -28,7 +28,7 @@
 use glam::DVec3;
 
 use super::camera::View;
-use super::incremental::{after, camera_motion, stays_above};
+use super::incremental::{after, camera_motion, round_down, stays_above};
 use super::selection::{blend_of_ratio, Rule, ViewTerrain};
 use crate::mesh::cells::CellTree;
 use crate::mesh::pyramid::{node_bounds, Diagonal};
@@ -47,8 +47,9 @@ pub struct MorphScratch {
     /// row (meaningless for nodes that did not split).
     blends: Vec<Vec<f32>>,
     /// Per node (as `blends`), the camera motion up to which its ratio stays at least 2
-    /// (blend 1); below `travelled` when unknown.
-    settled: Vec<Vec<f64>>,
+    /// (blend 1), rounded down to an `f32` (so looked at again slightly early, never
+    /// late); below `travelled` when unknown.
+    settled: Vec<Vec<f32>>,
     /// Camera motion accumulated since the state started (see [`camera_motion`]).
     travelled: f64,
     /// The last frame's view, and what the state belongs to.
@@ -91,6 +92,17 @@ pub fn morph(
 }
 
 impl MorphScratch {
+    /// The heap bytes the state holds (its vectors' capacities).
+    pub fn heap_bytes(&self) -> usize {
+        let nested = |v: &Vec<Vec<f32>>| {
+            v.iter().map(|l| l.capacity() * 4).sum::<usize>()
+                + v.capacity() * std::mem::size_of::<Vec<f32>>()
+        };
+        self.samples.capacity() * std::mem::size_of::<f64>()
+            + nested(&self.blends)
+            + nested(&self.settled)
+    }
+
     /// Moves the state to `view` (from scratch for another terrain, rule or projection).
     fn advance(&mut self, terrain: &ViewTerrain<'_>, view: &View, rule: Rule, tree: &CellTree) {
         let heights = terrain.heights();
@@ -110,7 +122,7 @@ impl MorphScratch {
             });
         }
         let motion = self.last.map_or(f64::INFINITY, |last| {
-            camera_motion(&last, view, &self.extent)
+            camera_motion(&last, view, &self.extent, f64::INFINITY)
         });
         self.last = Some(*view);
         let levels = terrain.levels() as usize;
@@ -125,7 +137,7 @@ impl MorphScratch {
         for m in 1..=levels {
             let (nw, nh) = tree.nodes(m as u32);
             self.blends[m - 1].resize(nw * nh, 0.0);
-            self.settled[m - 1].resize(nw * nh, f64::NEG_INFINITY);
+            self.settled[m - 1].resize(nw * nh, f32::NEG_INFINITY);
         }
     }
 
@@ -146,13 +158,13 @@ impl MorphScratch {
         );
         for (i, j) in tree.split_nodes(m) {
             let k = j * nw + i;
-            blends[k] = if settled[k] > self.travelled || terrain.is_void(m, i, j) {
+            blends[k] = if f64::from(settled[k]) > self.travelled || terrain.is_void(m, i, j) {
                 1.0
             } else {
                 let node = terrain.evaluate(view, rule, m, i, j);
                 let b = blend_of_ratio(node.ratio);
                 if b >= 1.0 {
-                    settled[k] = after(self.travelled, stays_above(rule, node, 2.0));
+                    settled[k] = round_down(after(self.travelled, stays_above(rule, node, 2.0)));
                 }
                 b as f32
             };
