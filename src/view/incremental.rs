@@ -24,7 +24,7 @@
 //! Leaves whose expiries are still ahead are copied as they are. For the others, what
 //! expired is evaluated again (the parent, the leaf, or both): a leaf whose parent no
 //! longer splits merges up to the highest such ancestor, a leaf that now splits is
-//! refined from there down. The leaves are kept in blocks of [`BLOCK`] with a lower bound
+//! refined from there down. The leaves are kept in blocks of `BLOCK` with a lower bound
 //! on their expiries, so a block none of whose leaves can have changed is copied whole
 //! without looking at them. The result equals [`ViewTerrain::select`] for the same camera
 //! (the property tests check it frame after frame, on paths that turn, pitch and look

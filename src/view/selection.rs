@@ -120,7 +120,7 @@ pub struct NodeView {
     /// `ratio = φ · weight · reach / depth²`.
     pub weight: f64,
     /// Largest horizontal distance from the eye to the box, at least
-    /// [`MIN_FORESHORTENING`] times the largest distance.
+    /// `MIN_FORESHORTENING` times the largest distance.
     pub reach: f64,
     /// Largest horizontal distance from the eye to the box.
     pub horizontal: f64,
