@@ -545,6 +545,10 @@ pub(crate) fn decode_layout(
             .row(row)
             .filter(|&k| layout.grid.tile(k).intersection(&window).is_some())
             .collect();
+        if wanted.is_empty() {
+            // Not before the window's first tiles: the output waits for them.
+            continue;
+        }
         let mut fetched = Vec::with_capacity(wanted.len());
         for &k in &wanted {
             let bytes = source
