@@ -133,8 +133,8 @@ const ACTIVITY_LEVELS: usize = 8;
 /// Levels of the quantised parent magnitude of coder 2.
 const PARENT_LEVELS: usize = 3;
 
-/// The sign model index of coefficient `at`. V1: the left and upper neighbours' signs; V2: the horizontal and vertical
-/// neighbours' sign balance and the parent's sign.
+/// The sign model index of coefficient `at`. V1: the left and upper neighbours' signs;
+/// V2: the horizontal and vertical neighbours' sign balance and the parent's sign.
 #[inline]
 pub(super) fn sign_context<S: Side>(
     contexts: &Contexts,

@@ -361,9 +361,10 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
             },
         );
         for &t in &touched {
-            match cutting && self.defers_cuts {
-                true => self.store(t, UNASSESSED),
-                false => self.assess_one(t, cutting),
+            if cutting && self.defers_cuts {
+                self.store(t, UNASSESSED);
+            } else {
+                self.assess_one(t, cutting);
             }
         }
         touched.clear();
