@@ -580,7 +580,15 @@ fn every_type() -> Vec<Raster> {
 
 /// Writes `raster` with the tiled writer in bands of uneven heights.
 fn write_tiled_by_bands(path: &Path, raster: &Raster, tile: u32) {
-    let mut writer = TiledGeoTiffWriter::create(path, &DemInfo::of(raster), tile).unwrap();
+    write_tiled_by_bands_on(path, raster, tile, 1);
+}
+
+/// [`write_tiled_by_bands`], compressing on `threads` threads.
+fn write_tiled_by_bands_on(path: &Path, raster: &Raster, tile: u32, threads: usize) {
+    let mut writer = TiledGeoTiffWriter::create(path, &DemInfo::of(raster), tile)
+        .unwrap()
+        .with_threads(threads)
+        .unwrap();
     let (width, height) = (raster.width, raster.height);
     let mut y0 = 0;
     for rows in [10, 32, 1, 17].iter().cycle() {
@@ -679,6 +687,25 @@ fn tiled_writer_takes_blocks_of_whole_tiles_in_any_order() {
             raster.sample_type().name()
         );
         assert_info_matches(&DemInfo::of(&back), &raster, "blocks");
+    }
+}
+
+#[test]
+fn tiled_writer_files_do_not_depend_on_its_threads() {
+    let scratch = support::scratch("dem_streaming");
+    for raster in every_type() {
+        let one = scratch.path().join("one.tif");
+        let three = scratch.path().join("three.tif");
+        write_tiled_by_bands_on(&one, &raster, 16, 1);
+        write_tiled_by_bands_on(&three, &raster, 16, 3);
+        let name = raster.sample_type().name();
+        assert_eq!(
+            std::fs::read(&one).unwrap(),
+            std::fs::read(&three).unwrap(),
+            "{name}"
+        );
+        let back = read_dem(&three, &ReadOptions::default()).unwrap();
+        assert_eq!(bits(&back.samples), bits(&raster.samples), "{name}");
     }
 }
 

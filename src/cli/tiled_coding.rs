@@ -143,7 +143,8 @@ fn decode_block_columns(grid: &TileGrid) -> usize {
 
 /// Decodes the tiled file `layout` describes one block at a time (a run of tiles of one
 /// tile row, see [`decode_block_columns`]) into a tiled GeoTIFF at `output`, each block
-/// written on another thread while the next one's tiles are decoded, which are placed
+/// written (its GeoTIFF tiles compressed on the decode's threads) on another thread
+/// while the next one's tiles are decoded, which are placed
 /// once it is written (with one thread, written before the next is decoded): memory
 /// holds one block and the tiles of the next, not the raster, and not a tile row when
 /// the blocks are narrower. `bar` shows the tile rows done.
@@ -164,8 +165,9 @@ pub fn decode_to_geotiff(
         georef: header.georef.clone(),
         metadata: header.metadata.clone(),
     };
-    let writer =
-        TiledGeoTiffWriter::create(output, &info, GEOTIFF_TILE).map_err(CliError::DemOutput)?;
+    let writer = TiledGeoTiffWriter::create(output, &info, GEOTIFF_TILE)
+        .and_then(|w| w.with_threads(options.threads))
+        .map_err(CliError::DemOutput)?;
     let mut outcome = DecodeOutcome {
         width: grid.width,
         height: grid.height,

@@ -51,6 +51,9 @@ pub struct TiledGeoTiffWriter {
     gathered: usize,
     chunks_out: Option<SyncSender<Message>>,
     worker: Option<JoinHandle<Result<AtomicFile, DemError>>>,
+    /// The threads a row of chunks is compressed on ([`TiledGeoTiffWriter::with_threads`]);
+    /// none: the calling thread.
+    compressors: Option<rayon::ThreadPool>,
 }
 
 /// What the writer thread receives.
@@ -150,7 +153,27 @@ impl TiledGeoTiffWriter {
             gathered: 0,
             chunks_out: Some(chunks_out),
             worker: Some(worker),
+            compressors: None,
         })
+    }
+
+    /// Compresses the chunks of each row of chunks on `threads` threads (0: one per
+    /// core; 1: the calling thread). The file does not depend on it.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self, DemError> {
+        self.compressors = match threads {
+            1 => None,
+            n => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .thread_name(|i| format!("geotiff-deflate-{i}"))
+                    .build()
+                    .map_err(|e| DemError::Io {
+                        path: self.path.clone(),
+                        source: io::Error::other(e),
+                    })?,
+            ),
+        };
+        Ok(self)
     }
 
     /// Adds rows `y0..y0 + band.height`: bands come in row order, each as wide as the
@@ -199,9 +222,13 @@ impl TiledGeoTiffWriter {
         for y in (0..band.height).step_by(tile) {
             let rows = tile.min(band.height - y);
             let source = &bytes(&band.samples)[y * row_bytes..(y + rows) * row_bytes];
-            let compressed =
-                compress_chunk_row(source, self.sample_type, rows, band.width, self.chunks)
-                    .map_err(io_error)?;
+            let compressed = compress_chunk_row(
+                source,
+                (self.sample_type, rows, band.width),
+                self.chunks,
+                self.compressors.as_ref(),
+            )
+            .map_err(io_error)?;
             chunks.extend(compressed);
         }
         for &k in &indices {
@@ -322,10 +349,9 @@ impl TiledGeoTiffWriter {
         let source = &bytes(&self.gathering)[..rows];
         let compressed = compress_chunk_row(
             source,
-            self.sample_type,
-            self.gathered,
-            self.width,
+            (self.sample_type, self.gathered, self.width),
             self.chunks,
+            self.compressors.as_ref(),
         )
         .map_err(|source| DemError::Io {
             path: self.path.clone(),
@@ -530,14 +556,13 @@ fn write_error(path: &Path, e: TiffError) -> DemError {
 }
 
 /// Cuts `source` (`rows` rows of `width` samples of `sample_type`, native byte order) into
-/// chunks, left to right, and compresses each: tiles padded with zeros to full tiles, a
-/// strip of `rows`.
+/// chunks, left to right, and compresses each (on `compressors` when given): tiles padded
+/// with zeros to full tiles, a strip of `rows`.
 fn compress_chunk_row(
     source: &[u8],
-    sample_type: SampleType,
-    rows: usize,
-    width: usize,
+    (sample_type, rows, width): (SampleType, usize, usize),
     chunks: Chunking,
+    compressors: Option<&rayon::ThreadPool>,
 ) -> io::Result<Vec<Vec<u8>>> {
     let (chunk_width, chunk_rows) = match chunks {
         Chunking::Tiles(tile) => (tile as usize, tile as usize),
@@ -545,21 +570,26 @@ fn compress_chunk_row(
     };
     let sample_bytes = sample_type.bytes();
     let row_bytes = width * sample_bytes;
-    let mut block = zeroed_samples(sample_type, chunk_width * chunk_rows);
-    let mut compressed = Vec::with_capacity(width.div_ceil(chunk_width));
-    for x0 in (0..width).step_by(chunk_width) {
+    let chunk = |x0: usize| {
         let used = (width - x0).min(chunk_width) * sample_bytes;
-        let block_bytes = bytes_mut(&mut block);
-        block_bytes.fill(0);
-        for (dest, row) in block_bytes
+        let mut block = zeroed_samples(sample_type, chunk_width * chunk_rows);
+        for (dest, row) in bytes_mut(&mut block)
             .chunks_exact_mut(chunk_width * sample_bytes)
             .zip(source.chunks_exact(row_bytes))
         {
             dest[..used].copy_from_slice(&row[x0 * sample_bytes..x0 * sample_bytes + used]);
         }
-        compressed.push(compress_chunk(&block, chunk_width)?);
+        compress_chunk(&block, chunk_width)
+    };
+    let starts = (0..width).step_by(chunk_width);
+    match compressors {
+        Some(pool) if starts.len() > 1 => {
+            use rayon::prelude::*;
+            let starts: Vec<usize> = starts.collect();
+            pool.install(|| starts.into_par_iter().map(chunk).collect())
+        }
+        _ => starts.map(chunk).collect(),
     }
-    Ok(compressed)
 }
 
 /// One chunk `width` samples wide, predicted as the whole-raster writer predicts and
@@ -627,7 +657,8 @@ mod tests {
         layout.big = true;
         let (send, receive) = sync_channel(2);
         let source = bytes(&raster.samples);
-        let row = compress_chunk_row(source, SampleType::I16, 30, 40, layout.chunks).unwrap();
+        let row =
+            compress_chunk_row(source, (SampleType::I16, 30, 40), layout.chunks, None).unwrap();
         send.send(Message::Chunks(row.into_iter().enumerate().collect()))
             .unwrap();
         send.send(Message::Finish).unwrap();
