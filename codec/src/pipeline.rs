@@ -5,7 +5,7 @@ mod decode;
 mod encode;
 mod options;
 
-pub use decode::{decode, decode_window, decode_window_then, Damage, Decoded};
+pub use decode::{decode, decode_window, decode_windows, Damage, Decoded};
 pub(crate) use encode::encode_stream;
 pub use encode::{encode, Encoded};
 pub use options::{DecodeOptions, EncodeOptions, Limits, Quality};

@@ -4,8 +4,8 @@ use std::io;
 
 use wavemesh_codec::tiles::TiledLayout;
 use wavemesh_codec::{
-    decode, decode_window, encode, ByteSource, DecodeOptions, EncodeOptions, Quality, Raster,
-    Samples, Window,
+    decode, decode_window, decode_windows, encode, ByteSource, DecodeOptions, EncodeOptions,
+    Quality, Raster, Samples, Window,
 };
 
 /// A smooth terrain with a ridge and some noise, `width × height` i16.
@@ -110,6 +110,88 @@ fn a_window_decodes_like_the_same_part_of_the_whole() {
         assert_eq!(part.raster.samples, all.raster.crop(50, 61, 90, 40).samples);
     }
     assert_eq!(whole.raster, raster);
+}
+
+#[test]
+fn windows_decode_one_after_the_other_as_each_alone() {
+    let raster = terrain(200, 180);
+    // Overlapping, repeated, one sample, the whole raster; tiled and single streams.
+    let windows = [
+        (0, 0, 64, 64),
+        (50, 61, 90, 40),
+        (50, 61, 90, 40),
+        (199, 179, 1, 1),
+    ]
+    .map(|(x, y, width, height)| Window {
+        x,
+        y,
+        width,
+        height,
+    });
+    let whole = Window {
+        x: 0,
+        y: 0,
+        width: 200,
+        height: 180,
+    };
+    for tile in [64, 1024] {
+        let encoded = encode(&raster, &tiled(tile, Quality::Lossless, None)).unwrap();
+        for (threads, budget) in [
+            (1, None),
+            (2, None),
+            (3, Some(encoded.bytes.len() as u64 / 4)),
+        ] {
+            let options = DecodeOptions::default()
+                .with_threads(threads)
+                .with_max_bytes(budget);
+            let (mut before_output, mut delivered) = (0, Vec::new());
+            let windows = [&windows[..], &[whole]].concat();
+            decode_windows(
+                &mut &encoded.bytes[..],
+                &windows,
+                &options,
+                &mut || before_output += 1,
+                &mut |w, d| {
+                    delivered.push((w, d));
+                    true
+                },
+            )
+            .unwrap();
+            assert_eq!(
+                (before_output, delivered.len()),
+                (windows.len(), windows.len())
+            );
+            for (w, d) in delivered {
+                if budget.is_none() {
+                    let part = raster.crop(w.x, w.y, w.width, w.height);
+                    assert_eq!(d.raster.samples, part.samples, "lossless");
+                }
+                let alone = decode_window(&mut &encoded.bytes[..], Some(w), &options).unwrap();
+                assert_eq!(
+                    d.raster, alone.raster,
+                    "tile {tile}, {threads} threads, {w:?}"
+                );
+                assert_eq!(
+                    (d.passes_decoded, d.complete, d.bytes_used),
+                    (alone.passes_decoded, alone.complete, alone.bytes_used)
+                );
+            }
+        }
+        // `deliver` saying no stops the decode.
+        let mut delivered = 0;
+        decode_windows(
+            &mut &encoded.bytes[..],
+            &windows,
+            &DecodeOptions::default().with_threads(2),
+            &mut || {},
+            &mut |_, _| {
+                delivered += 1;
+                false
+            },
+        )
+        .unwrap();
+        assert_eq!(delivered, 1);
+    }
 }
 
 /// A source that counts the bytes it hands out.

@@ -9,7 +9,7 @@ use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter, BLOCK_WIDTH};
 use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
-use wavemesh_codec::{decode_window_then, DecodeOptions, Raster, TileGrid, Window};
+use wavemesh_codec::{decode_windows, DecodeOptions, Raster, TileGrid, Window};
 
 use super::coding::{encode_options, print_encode_report, DecodeOutcome, EncodeArgs, EncodeFacts};
 use super::{read_failure, timed, CliError, Workload};
@@ -144,10 +144,11 @@ fn decode_block_columns(grid: &TileGrid) -> usize {
 /// Decodes the tiled file `layout` describes one block at a time (a run of tiles of one
 /// tile row, see [`decode_block_columns`]) into a tiled GeoTIFF at `output`, each block
 /// written (its GeoTIFF tiles compressed on the decode's threads) on another thread
-/// while the next one's tiles are decoded, which are placed
-/// once it is written (with one thread, written before the next is decoded): memory
-/// holds one block and the tiles of the next, not the raster, and not a tile row when
-/// the blocks are narrower. `bar` shows the tile rows done.
+/// while the next one's tiles are decoded, which are placed once it is written (with one
+/// thread, written before the next is decoded). Tiles are decoded a few ahead across
+/// blocks (`decode_windows`), so no thread waits at a block's end: memory holds one
+/// block and a few decoded tiles, not the raster, and not a tile row when the blocks are
+/// narrower. `bar` shows the tile rows done.
 pub fn decode_to_geotiff(
     (input, output): (&Path, &Path),
     source: &mut FileSource,
@@ -178,24 +179,36 @@ pub fn decode_to_geotiff(
     };
     let per_block = decode_block_columns(grid);
     let by_rows = per_block == grid.columns();
+    let blocks = grid.blocks(per_block);
+    let windows: Vec<Window> = blocks
+        .iter()
+        .map(|(row, columns)| grid.block(*row, columns.clone()))
+        .collect();
     let mut decode_all = |deliver: &mut dyn FnMut(Window, Raster) -> bool,
                           written: &mut dyn FnMut()| {
-        for (row, columns) in grid.blocks(per_block) {
-            let window = grid.block(row, columns.clone());
-            let decoded = decode_window_then(source, Some(window), options, written)
-                .map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
-            outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
-            outcome.complete &= decoded.complete;
-            outcome.bytes_used += decoded.bytes_used - layout.head_len();
-            outcome.damage = outcome.damage.or(decoded.damage);
-            if !deliver(window, decoded.raster) {
-                break; // the writer failed: its error is reported by the caller
-            }
-            if columns.end == grid.columns() {
-                bar.show(row + 1);
-            }
-        }
-        Ok::<(), CliError>(())
+        let mut blocks_done = blocks.iter();
+        decode_windows(
+            source,
+            &windows,
+            options,
+            written,
+            &mut |window, decoded| {
+                outcome.passes_decoded = outcome.passes_decoded.min(decoded.passes_decoded);
+                outcome.complete &= decoded.complete;
+                outcome.bytes_used += decoded.bytes_used - layout.head_len();
+                outcome.damage = outcome.damage.or(decoded.damage);
+                if !deliver(window, decoded.raster) {
+                    return false; // the writer failed: its error is reported by the caller
+                }
+                if let Some((row, columns)) = blocks_done.next() {
+                    if columns.end == grid.columns() {
+                        bar.show(row + 1);
+                    }
+                }
+                true
+            },
+        )
+        .map_err(|e| CliError::Stream(input.to_path_buf(), e))
     };
     let write = move |writer: &mut TiledGeoTiffWriter, window: Window, band: &Raster| {
         if by_rows {

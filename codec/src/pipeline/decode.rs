@@ -61,31 +61,100 @@ pub fn decode_window(
     window: Option<Window>,
     options: &DecodeOptions,
 ) -> Result<Decoded, CodecError> {
-    decode_window_then(source, window, options, &mut || {})
-}
-
-/// [`decode_window`], calling `before_output` once a tiled file's tiles are decoded,
-/// before the window's samples are allocated (a writer can finish the previous window
-/// there, so that the two are never held together); of a single stream, once it is
-/// decoded.
-pub fn decode_window_then(
-    source: &mut impl ByteSource,
-    window: Option<Window>,
-    options: &DecodeOptions,
-    before_output: &mut dyn FnMut(),
-) -> Result<Decoded, CodecError> {
     if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
-        return crate::tiles::decode_layout(source, &layout, window, options, before_output);
+        return decode_tiled_window(source, &layout, window, options);
     }
-    let data = source
-        .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
-        .map_err(|e| CodecError::Read(e.to_string()))?;
-    let mut decoded = decode(&data, options)?;
-    before_output();
+    let mut decoded = decode_single(source, options)?;
     if let Some(w) = window {
         decoded.raster = crop_to_window(&decoded.raster, w)?;
     }
     Ok(decoded)
+}
+
+/// `window` (all of it when `None`) of the tiled file `layout` describes.
+fn decode_tiled_window(
+    source: &mut impl ByteSource,
+    layout: &TiledLayout,
+    window: Option<Window>,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    let window = window.unwrap_or(Window {
+        x: 0,
+        y: 0,
+        width: layout.grid.width,
+        height: layout.grid.height,
+    });
+    let mut decoded = None;
+    crate::tiles::decode_layout(
+        source,
+        layout,
+        &[window],
+        options,
+        &mut || {},
+        &mut |_, d| {
+            decoded = Some(d);
+            true
+        },
+    )?;
+    Ok(decoded.expect("one window, one decode"))
+}
+
+/// Decodes `windows` of a `.ezw` file one after the other, handing each to `deliver`
+/// (which returns `false` to stop), each as [`decode_window`] would. Of a tiled file the
+/// tiles are decoded on `options.threads` threads in the order the windows need them,
+/// the next window's started while the current one's last tiles finish, so no thread
+/// waits at a window's end; `before_output` runs before each window's samples are
+/// allocated (a writer can finish the previous window there, so that the two are never
+/// held together). A single stream is decoded once and cropped to each window.
+pub fn decode_windows(
+    source: &mut impl ByteSource,
+    windows: &[Window],
+    options: &DecodeOptions,
+    before_output: &mut dyn FnMut(),
+    deliver: &mut dyn FnMut(Window, Decoded) -> bool,
+) -> Result<(), CodecError> {
+    if let Some(layout) = TiledLayout::read(source, index_limit(options))? {
+        return crate::tiles::decode_layout(
+            source,
+            &layout,
+            windows,
+            options,
+            before_output,
+            deliver,
+        );
+    }
+    let decoded = decode_single(source, options)?;
+    for &window in windows {
+        before_output();
+        if !deliver(window, crop_decoded(&decoded, window)?) {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// A single stream read whole (or its `max_bytes` prefix) from `source` and decoded.
+fn decode_single(
+    source: &mut impl ByteSource,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    let data = source
+        .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
+        .map_err(|e| CodecError::Read(e.to_string()))?;
+    decode(&data, options)
+}
+
+/// `decoded` cut to `window`.
+fn crop_decoded(decoded: &Decoded, window: Window) -> Result<Decoded, CodecError> {
+    Ok(Decoded {
+        raster: crop_to_window(&decoded.raster, window)?,
+        header: decoded.header.clone(),
+        passes_decoded: decoded.passes_decoded,
+        complete: decoded.complete,
+        bytes_used: decoded.bytes_used,
+        damage: decoded.damage,
+        significance: decoded.significance.clone(),
+    })
 }
 
 /// The part of `raster` inside `window`, with its metadata and a georeferencing moved to
@@ -158,7 +227,7 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
                 "significance maps come from single-stream files, not tiled ones".into(),
             ));
         }
-        return crate::tiles::decode_layout(&mut data, &layout, None, options, &mut || {});
+        return decode_tiled_window(&mut data, &layout, None, options);
     }
     let data = match options.max_bytes {
         Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],

@@ -1,6 +1,9 @@
 //! Decoding the tiles a window touches and placing them in the output.
 
-use super::{TiledLayout, Window};
+use std::collections::VecDeque;
+
+use super::workers::{Task, Workers};
+use super::{ByteSource, TiledLayout, Window};
 use crate::container::Header;
 use crate::error::CodecError;
 use crate::pipeline::{Damage, DecodeOptions, Decoded};
@@ -13,6 +16,71 @@ pub(super) fn tile(bytes: &[u8], options: &DecodeOptions) -> Result<Decoded, Cod
         .with_threads(1)
         .with_significance_map(false);
     crate::progress::observe(|_| {}, || crate::pipeline::decode(bytes, &single))
+}
+
+/// A tile's decode: what [`tile`] returned for it.
+type TileDecode = Result<Decoded, CodecError>;
+
+/// The file's tiles in the order the windows place them, each decoded on the workers
+/// ahead of its turn: with several threads, one tile more started and not yet taken than
+/// there are threads (one thread decodes each tile when it is taken), so a thread
+/// finishing a window's last tiles goes on with the next window's first ones, and memory
+/// holds a tile's decoders per thread and at most one decoded tile waiting, not a row.
+pub(super) struct TilesAhead<'a, S: ByteSource> {
+    source: &'a mut S,
+    layout: &'a TiledLayout,
+    /// Bytes each tile's decode reads.
+    lengths: &'a [u64],
+    options: DecodeOptions,
+    workers: &'a Workers,
+    /// Tile indices in placing order.
+    order: Vec<usize>,
+    /// Tiles of `order` started so far.
+    started: usize,
+    /// Started and not yet taken: tile, bytes read, its decode.
+    running: VecDeque<(usize, u64, Task<TileDecode>)>,
+}
+
+impl<'a, S: ByteSource> TilesAhead<'a, S> {
+    /// Decodes the tiles of `order`, reading `lengths[k]` bytes of tile `k` from `source`.
+    pub(super) fn new(
+        (source, layout, lengths): (&'a mut S, &'a TiledLayout, &'a [u64]),
+        options: &DecodeOptions,
+        workers: &'a Workers,
+        order: Vec<usize>,
+    ) -> Self {
+        TilesAhead {
+            source,
+            layout,
+            lengths,
+            options: *options,
+            workers,
+            order,
+            started: 0,
+            running: VecDeque::new(),
+        }
+    }
+
+    /// The next tile in order: its index, the bytes read and its decode. An error when
+    /// the source fails; called past the last tile it panics.
+    pub(super) fn next(&mut self) -> Result<(usize, u64, TileDecode), CodecError> {
+        let threads = self.workers.count();
+        let ahead = if threads > 1 { threads + 1 } else { 1 };
+        while self.started < self.order.len() && self.running.len() < ahead {
+            let k = self.order[self.started];
+            let bytes = self
+                .source
+                .read_at(self.layout.offsets[k], self.lengths[k] as usize)
+                .map_err(|e| CodecError::Read(e.to_string()))?;
+            let options = self.options;
+            let fetched = bytes.len() as u64;
+            let task = self.workers.spawn(move || tile(&bytes, &options));
+            self.running.push_back((k, fetched, task));
+            self.started += 1;
+        }
+        let (k, fetched, task) = self.running.pop_front().expect("a tile left to take");
+        Ok((k, fetched, task.wait()))
+    }
 }
 
 /// The window being filled, and what the tiles placed so far say about the decode.

@@ -506,70 +506,66 @@ fn cut_recoded(
     Err(too_small())
 }
 
-/// Decodes a tiled file from `source`, whole or only `window`, reading only the bytes
-/// it needs: the header and index, then for each tile the window touches the prefix
-/// [`allocate()`] gives it under `options.max_bytes` (all of it without a budget).
-/// `before_output` runs once, before the window's samples are allocated (after the first
-/// tiles are decoded).
+/// Decodes `windows` of a tiled file from `source` one after the other, handing each to
+/// `deliver` (`false` stops), reading only the bytes they need: the header and index,
+/// then for each tile a window touches the prefix [`allocate()`] gives it under
+/// `options.max_bytes` (all of it without a budget). Tiles are decoded ahead of their
+/// placing, across windows (see [`decode::TilesAhead`]). `before_output` runs before
+/// each window's samples are allocated (after its first tile is decoded).
 pub(crate) fn decode_layout(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
-    window: Option<Window>,
+    windows: &[Window],
     options: &DecodeOptions,
     before_output: &mut dyn FnMut(),
-) -> Result<Decoded, CodecError> {
-    let header = &layout.header;
+    deliver: &mut dyn FnMut(Window, Decoded) -> bool,
+) -> Result<(), CodecError> {
     let whole = Window {
         x: 0,
         y: 0,
         width: layout.grid.width,
         height: layout.grid.height,
     };
-    let window = match window {
-        None => whole,
-        Some(w) => w.intersection(&whole).filter(|i| *i == w).ok_or_else(|| {
-            CodecError::InvalidParameters(format!(
+    let workers = Workers::new(options.threads)?;
+    for w in windows {
+        if w.intersection(&whole) != Some(*w) {
+            return Err(CodecError::InvalidParameters(format!(
                 "window {}x{} at ({}, {}) is not inside the {}x{} raster",
                 w.width, w.height, w.x, w.y, whole.width, whole.height
-            ))
-        })?,
-    };
-    let workers = Workers::new(options.threads)?;
-    check_memory(layout, &window, options, workers.count())?;
+            )));
+        }
+        check_memory(layout, w, options, workers.count())?;
+    }
     let lengths = tile_lengths(layout, options.max_bytes)?;
-    // Made once the first tiles are decoded: not beside their decoders.
-    let mut output = None;
-    for row in 0..layout.grid.rows() {
-        let wanted: Vec<usize> = layout
-            .grid
-            .row(row)
-            .filter(|&k| layout.grid.tile(k).intersection(&window).is_some())
-            .collect();
-        if wanted.is_empty() {
-            // Not before the window's first tiles: the output waits for them.
-            continue;
+    let touched: Vec<Vec<usize>> = windows
+        .iter()
+        .map(|w| {
+            (0..layout.grid.count())
+                .filter(|&k| layout.grid.tile(k).intersection(w).is_some())
+                .collect()
+        })
+        .collect();
+    let order = touched.iter().flatten().copied().collect();
+    let mut tiles = decode::TilesAhead::new((source, layout, &lengths), options, &workers, order);
+    for (window, tile_count) in windows.iter().zip(touched.iter().map(Vec::len)) {
+        let mut output = None;
+        for _ in 0..tile_count {
+            let (k, fetched, result) = tiles.next()?;
+            let output = output.get_or_insert_with(|| {
+                before_output();
+                decode::Output::new(&layout.header, *window)
+            });
+            output.place(k, layout, fetched, result, options.strict)?;
         }
-        let mut fetched = Vec::with_capacity(wanted.len());
-        for &k in &wanted {
-            let bytes = source
-                .read_at(layout.offsets[k], lengths[k] as usize)
-                .map_err(|e| CodecError::Read(e.to_string()))?;
-            fetched.push((k, bytes));
-        }
-        let decoded = workers.map(0..fetched.len(), |i| decode::tile(&fetched[i].1, options));
-        let output = output.get_or_insert_with(|| {
+        let output = output.unwrap_or_else(|| {
             before_output();
-            decode::Output::new(header, window)
+            decode::Output::new(&layout.header, *window)
         });
-        for ((k, bytes), result) in fetched.iter().zip(decoded) {
-            output.place(*k, layout, bytes.len() as u64, result, options.strict)?;
+        if !deliver(*window, output.finish(layout)) {
+            break;
         }
     }
-    let output = output.unwrap_or_else(|| {
-        before_output();
-        decode::Output::new(header, window)
-    });
-    Ok(output.finish(layout))
+    Ok(())
 }
 
 mod decode;

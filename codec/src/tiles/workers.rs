@@ -6,6 +6,8 @@
 //! allocator arenas, instead of starting new ones for every block.
 
 use std::ops::Range;
+use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
+use std::sync::mpsc::{sync_channel, Receiver};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use rayon::prelude::*;
@@ -49,6 +51,43 @@ impl Workers {
             }
             _ => items.map(work).collect(),
         }
+    }
+}
+
+/// Work handed to [`Workers::spawn`]: its result, once done.
+pub(crate) struct Task<T>(Receiver<std::thread::Result<T>>);
+
+impl<T> Task<T> {
+    /// Waits for the result (a panic in the work resumes here).
+    pub(crate) fn wait(self) -> T {
+        match self
+            .0
+            .recv()
+            .expect("a task sends its result before it ends")
+        {
+            Ok(result) => result,
+            Err(panic) => resume_unwind(panic),
+        }
+    }
+}
+
+impl Workers {
+    /// Starts `work` on the pool (tasks start in the order they are spawned), or runs it
+    /// now on one thread.
+    pub(crate) fn spawn<T: Send + 'static>(
+        &self,
+        work: impl FnOnce() -> T + Send + 'static,
+    ) -> Task<T> {
+        let (result, task) = sync_channel(1);
+        let run = move || {
+            // The receiver may be gone (the decode stopped early): nothing to tell.
+            let _ = result.send(catch_unwind(AssertUnwindSafe(work)));
+        };
+        match &self.pool {
+            Some(pool) => pool.spawn_fifo(run),
+            None => run(),
+        }
+        Task(task)
     }
 }
 
