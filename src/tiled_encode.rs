@@ -3,14 +3,18 @@
 //! streams, spooled to a temporary file; the header and index go first in the output,
 //! the tiles after them. The bytes are those of an in-memory encode of the same raster.
 
+use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::Path;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::Arc;
 
 use thiserror::Error;
 use wavemesh_codec::tiles::{
-    cut_to_budget, encode_block, encode_tile, tiled_head, EncodedTile, RasterInfo, TileSummary,
+    cut_to_budget, encode_block, encode_tile, tile_cap, tiled_head, EncodedTile, RasterInfo,
+    TileSummary,
 };
 use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid, Window};
 
@@ -70,24 +74,24 @@ pub fn encode_tiled(
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
     let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
-    let mut band = read_block(bands, grid, &blocks[0], None)?;
-    for (k, block) in blocks.iter().enumerate() {
-        let next = blocks.get(k + 1);
-        let (tiles, next_band) = code_and_read_next((block, &band), next, bands, grid, options);
-        for tile in tiles? {
-            summaries.push(tile.summary.clone());
-            if options.budget_bytes.is_some() {
-                kept.push(tile);
-            } else {
-                spool.write_all(&tile.bytes)?;
-            }
+    let mut take = |tile: EncodedTile| -> io::Result<()> {
+        summaries.push(tile.summary.clone());
+        if options.budget_bytes.is_some() {
+            kept.push(tile);
+            Ok(())
+        } else {
+            spool.write_all(&tile.bytes)
         }
-        if let Some(next_band) = next_band? {
-            band = next_band;
-        }
+    };
+    let mut block_done = |block: &Block| {
         if block.1.end == grid.columns() {
             rows_done(block.0 + 1);
         }
+    };
+    let coding = (&mut *bands, grid, &blocks[..]);
+    match options.threads {
+        1 => code_blocks_in_turn(coding, options, &mut take, &mut block_done)?,
+        n => code_blocks_ahead(coding, options, n, &mut take, &mut block_done)?,
     }
     if let Some(budget) = options.budget_bytes {
         let mut recode = |k: usize, cap: u64| -> Result<EncodedTile, TiledEncodeError> {
@@ -111,34 +115,103 @@ pub fn encode_tiled(
     })
 }
 
-/// Codes the tiles of `block` from `band` and reads the `next` block's band: at the
-/// same time on two threads, unless `options` asks for one thread, when the read follows
-/// the coding.
-fn code_and_read_next(
-    (block, band): (&Block, &Raster),
-    next: Option<&Block>,
+/// A streaming encode's source: the DEM, its tile grid and the blocks it is read in.
+type Coding<'a> = (&'a mut RowBands, &'a TileGrid, &'a [Block]);
+
+/// Reads each block, then codes its tiles, one after the other on the calling thread,
+/// handing the tiles to `take` in grid order and each block to `block_done`.
+fn code_blocks_in_turn(
+    (bands, grid, blocks): Coding,
+    options: &EncodeOptions,
+    take: &mut dyn FnMut(EncodedTile) -> io::Result<()>,
+    block_done: &mut dyn FnMut(&Block),
+) -> Result<(), TiledEncodeError> {
+    let mut previous: Option<(&Block, Raster)> = None;
+    for block in blocks {
+        let band = read_block(bands, grid, block, previous.as_ref().map(|(b, r)| (*b, r)))?;
+        for tile in encode_block(&band, grid, block.0, block.1.clone(), options)? {
+            take(tile)?;
+        }
+        block_done(block);
+        previous = Some((block, band));
+    }
+    Ok(())
+}
+
+/// [`code_blocks_in_turn`] on `threads` threads (0: one per core): a reader thread reads
+/// the next block while the current one's tiles are coded, and tiles are coded one more
+/// ahead of their collection than there are threads, across blocks, so no thread waits
+/// for a block's slowest tile. The tiles, and so the file, are those of one thread.
+fn code_blocks_ahead(
+    (bands, grid, blocks): Coding,
+    options: &EncodeOptions,
+    threads: usize,
+    take: &mut dyn FnMut(EncodedTile) -> io::Result<()>,
+    block_done: &mut dyn FnMut(&Block),
+) -> Result<(), TiledEncodeError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(io::Error::other)?;
+    let ahead = pool.current_num_threads() + 1;
+    let samples = (grid.width * grid.height) as u64;
+    std::thread::scope(|scope| {
+        let (send, read) = sync_channel(0);
+        scope.spawn(move || read_blocks(bands, grid, blocks, send));
+        let mut running: VecDeque<(usize, Receiver<Result<EncodedTile, CodecError>>)> =
+            VecDeque::new();
+        let mut collect = |running: &mut VecDeque<_>| -> Result<(), TiledEncodeError> {
+            let (b, tile): (usize, Receiver<_>) = running.pop_front().expect("a tile running");
+            take(tile.recv().expect("a coded tile is sent")?)?;
+            if running.front().is_none_or(|(next, _)| *next != b) {
+                block_done(&blocks[b]);
+            }
+            Ok(())
+        };
+        for (b, band) in read.into_iter().enumerate() {
+            let (block, band) = (&blocks[b], band?);
+            let origin = grid.coded_block(block.0, block.1.clone());
+            let first = block.0 * grid.columns();
+            for k in first + block.1.start..first + block.1.end {
+                while running.len() >= ahead {
+                    collect(&mut running)?;
+                }
+                let w = grid.coded(k);
+                let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
+                let (options, cap) = (options.clone(), tile_cap(options.budget_bytes, &w, samples));
+                let (done, tile) = sync_channel(1);
+                pool.spawn_fifo(move || {
+                    // The receiver is gone only when the encode stopped on an error.
+                    let _ = done.send(encode_tile(&part, &options, cap));
+                });
+                running.push_back((b, tile));
+            }
+        }
+        while !running.is_empty() {
+            collect(&mut running)?;
+        }
+        Ok(())
+    })
+}
+
+/// Reads `blocks` in order into `send` (stopping at the first error, or when the
+/// receiver is gone), each block's shared rows taken from the one before.
+fn read_blocks(
     bands: &mut RowBands,
     grid: &TileGrid,
-    options: &EncodeOptions,
-) -> (
-    Result<Vec<EncodedTile>, CodecError>,
-    Result<Option<Raster>, DemError>,
+    blocks: &[Block],
+    send: SyncSender<Result<Arc<Raster>, DemError>>,
 ) {
-    let read_next = |bands: &mut RowBands| {
-        next.map(|next| read_block(bands, grid, next, Some((block, band))))
-            .transpose()
-    };
-    let code = || encode_block(band, grid, block.0, block.1.clone(), options);
-    if options.threads == 1 {
-        let tiles = code();
-        return (tiles, read_next(bands));
+    let mut previous: Option<(&Block, Arc<Raster>)> = None;
+    for block in blocks {
+        let above = previous.as_ref().map(|(b, r)| (*b, &**r));
+        let band = read_block(bands, grid, block, above).map(Arc::new);
+        let next = band.as_ref().ok().map(|band| (block, Arc::clone(band)));
+        if send.send(band).is_err() || next.is_none() {
+            return;
+        }
+        previous = next;
     }
-    std::thread::scope(|scope| {
-        let reader = scope.spawn(|| read_next(bands));
-        let tiles = code();
-        let next = reader.join().expect("the band reader does not panic");
-        (tiles, next)
-    })
 }
 
 /// The samples the streams of `block` code (its tiles and their overlap), with the rows
