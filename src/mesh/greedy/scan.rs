@@ -268,7 +268,7 @@ impl SideWalk {
 
 /// Calls `row(y, lo, hi)` for rows `from..to` with the span between the sides `left` and
 /// `right`, stepping both; `false` when `row` asked to stop.
-#[inline]
+#[inline(always)]
 fn walk_rows(
     from: i64,
     to: i64,
@@ -291,7 +291,7 @@ fn walk_rows(
 /// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`. The
 /// corners sorted by row, the long side (top to bottom) bounds one end of every row and
 /// the two short sides the other, the upper one down to the middle corner's row.
-#[inline]
+#[inline(always)]
 pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
     let [mut top, mut middle, mut bottom] = p;
     if top.1 > middle.1 {
