@@ -266,31 +266,12 @@ impl SideWalk {
     }
 }
 
-/// Calls `row(y, lo, hi)` for rows `from..to` with the span between the sides `left` and
-/// `right`, stepping both; `false` when `row` asked to stop.
-#[inline(always)]
-fn walk_rows(
-    from: i64,
-    to: i64,
-    left: &mut SideWalk,
-    right: &mut SideWalk,
-    row: &mut impl FnMut(i64, i64, i64) -> bool,
-) -> bool {
-    for y in from..to {
-        let (lo, hi) = (left.ceil(), right.floor());
-        if lo <= hi && !row(y, lo, hi) {
-            return false;
-        }
-        left.step();
-        right.step();
-    }
-    true
-}
-
 /// Calls `row(y, lo, hi)` for every row `y` of the counter-clockwise triangle `p` with
 /// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`. The
 /// corners sorted by row, the long side (top to bottom) bounds one end of every row and
-/// the two short sides the other, the upper one down to the middle corner's row.
+/// the two short sides the other, the upper one down to the middle corner's row. One
+/// loop calls `row` (one call site, so each reader's row body is inlined into it and
+/// its running state kept in registers).
 #[inline(always)]
 pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
     let [mut top, mut middle, mut bottom] = p;
@@ -306,27 +287,31 @@ pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> b
     // Rows grow downwards: a positive orientation puts the middle corner left of the long side.
     let middle_left = orient(top, bottom, middle) > 0;
     let mut long = SideWalk::new(top, bottom);
-    let mut walk = |from: i64, to: i64, short: &mut SideWalk, long: &mut SideWalk| {
-        if middle_left {
-            walk_rows(from, to, short, long, &mut row)
+    // The upper short side down to the middle corner's row (to the last row with a
+    // horizontal bottom side), then the lower one; with a horizontal top, the lower one.
+    let (mut short, switch) = if middle.1 > top.1 {
+        let switch = if bottom.1 > middle.1 {
+            middle.1
         } else {
-            walk_rows(from, to, long, short, &mut row)
-        }
+            i64::MAX
+        };
+        (SideWalk::new(top, middle), switch)
+    } else {
+        (SideWalk::new(middle, bottom), i64::MAX)
     };
-    if middle.1 > top.1 {
-        // With a horizontal bottom side, the upper short side runs to the last row.
-        let end = middle.1 + i64::from(middle.1 == bottom.1);
-        if !walk(top.1, end, &mut SideWalk::new(top, middle), &mut long) {
+    for y in top.1..=bottom.1 {
+        if y == switch {
+            short = SideWalk::new(middle, bottom);
+        }
+        let (lo, hi) = match middle_left {
+            true => (short.ceil(), long.floor()),
+            false => (long.ceil(), short.floor()),
+        };
+        if lo <= hi && !row(y, lo, hi) {
             return;
         }
-    }
-    if bottom.1 > middle.1 {
-        walk(
-            middle.1,
-            bottom.1 + 1,
-            &mut SideWalk::new(middle, bottom),
-            &mut long,
-        );
+        short.step();
+        long.step();
     }
 }
 
