@@ -9,8 +9,9 @@ const ABSENT: u32 = u32::MAX;
 /// the same whatever order the keys were set in.
 #[derive(Debug, Clone, Default)]
 pub struct WorstFirst {
-    /// `(error bits, triangle)`: errors are never negative, so their bits order them.
-    heap: Vec<(u64, u32)>,
+    /// `error bits << 32 | triangle`: errors are never negative, so their bits order
+    /// them, and one `u128` comparison orders (error, triangle) without a branch.
+    heap: Vec<u128>,
     /// Each triangle's index in `heap`, or [`ABSENT`].
     position: Vec<u32>,
 }
@@ -19,7 +20,7 @@ impl WorstFirst {
     /// The worst triangle, if any is waiting.
     #[inline]
     pub fn worst(&self) -> Option<u32> {
-        self.heap.first().map(|&(_, t)| t)
+        self.heap.first().map(|&key| key as u32)
     }
 
     /// Queues triangle `t` with `error` (≥ 0), or moves it there if already queued.
@@ -28,7 +29,7 @@ impl WorstFirst {
         if self.position.len() <= t as usize {
             self.position.resize(t as usize + 1, ABSENT);
         }
-        let key = (error.to_bits(), t);
+        let key = u128::from(error.to_bits()) << 32 | u128::from(t);
         match self.position[t as usize] {
             ABSENT => {
                 self.heap.push(key);
@@ -73,7 +74,7 @@ impl WorstFirst {
     /// Records where the entry at `at` now sits.
     #[inline]
     fn place(&mut self, at: usize) {
-        self.position[self.heap[at].1 as usize] = at as u32;
+        self.position[self.heap[at] as u32 as usize] = at as u32;
     }
 
     /// Moves the entry at `at` up to its place: smaller parents move down into the hole
@@ -104,11 +105,7 @@ impl WorstFirst {
                 break;
             }
             let right = left + 1;
-            let child = if right < n && self.heap[right] > self.heap[left] {
-                right
-            } else {
-                left
-            };
+            let child = left + usize::from(right < n && self.heap[right] > self.heap[left]);
             if self.heap[child] <= entry {
                 break;
             }

@@ -266,32 +266,13 @@ impl SideWalk {
     }
 }
 
-/// Calls `row(y, lo, hi)` for rows `from..to` with the span between the sides `left` and
-/// `right`, stepping both; `false` when `row` asked to stop.
-#[inline]
-fn walk_rows(
-    from: i64,
-    to: i64,
-    left: &mut SideWalk,
-    right: &mut SideWalk,
-    row: &mut impl FnMut(i64, i64, i64) -> bool,
-) -> bool {
-    for y in from..to {
-        let (lo, hi) = (left.ceil(), right.floor());
-        if lo <= hi && !row(y, lo, hi) {
-            return false;
-        }
-        left.step();
-        right.step();
-    }
-    true
-}
-
 /// Calls `row(y, lo, hi)` for every row `y` of the counter-clockwise triangle `p` with
 /// samples `lo..=hi` inside or on it, top to bottom, until `row` returns `false`. The
 /// corners sorted by row, the long side (top to bottom) bounds one end of every row and
-/// the two short sides the other, the upper one down to the middle corner's row.
-#[inline]
+/// the two short sides the other, the upper one down to the middle corner's row. One
+/// loop calls `row` (one call site, so each reader's row body is inlined into it and
+/// its running state kept in registers).
+#[inline(always)]
 pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> bool) {
     let [mut top, mut middle, mut bottom] = p;
     if top.1 > middle.1 {
@@ -306,27 +287,31 @@ pub fn for_each_span(p: [(i64, i64); 3], mut row: impl FnMut(i64, i64, i64) -> b
     // Rows grow downwards: a positive orientation puts the middle corner left of the long side.
     let middle_left = orient(top, bottom, middle) > 0;
     let mut long = SideWalk::new(top, bottom);
-    let mut walk = |from: i64, to: i64, short: &mut SideWalk, long: &mut SideWalk| {
-        if middle_left {
-            walk_rows(from, to, short, long, &mut row)
+    // The upper short side down to the middle corner's row (to the last row with a
+    // horizontal bottom side), then the lower one; with a horizontal top, the lower one.
+    let (mut short, switch) = if middle.1 > top.1 {
+        let switch = if bottom.1 > middle.1 {
+            middle.1
         } else {
-            walk_rows(from, to, long, short, &mut row)
-        }
+            i64::MAX
+        };
+        (SideWalk::new(top, middle), switch)
+    } else {
+        (SideWalk::new(middle, bottom), i64::MAX)
     };
-    if middle.1 > top.1 {
-        // With a horizontal bottom side, the upper short side runs to the last row.
-        let end = middle.1 + i64::from(middle.1 == bottom.1);
-        if !walk(top.1, end, &mut SideWalk::new(top, middle), &mut long) {
+    for y in top.1..=bottom.1 {
+        if y == switch {
+            short = SideWalk::new(middle, bottom);
+        }
+        let (lo, hi) = match middle_left {
+            true => (short.ceil(), long.floor()),
+            false => (long.ceil(), short.floor()),
+        };
+        if lo <= hi && !row(y, lo, hi) {
             return;
         }
-    }
-    if bottom.1 > middle.1 {
-        walk(
-            middle.1,
-            bottom.1 + 1,
-            &mut SideWalk::new(middle, bottom),
-            &mut long,
-        );
+        short.step();
+        long.step();
     }
 }
 
@@ -487,7 +472,37 @@ pub fn assess<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
             touches_void: p.iter().any(|&q| !grid.is_valid(grid.sample(q))),
         };
     }
+    if grid.no_nodata && twice_area(p) == 2 {
+        return assess_midpoint(grid, v);
+    }
     assess_within(grid, v, f64::INFINITY).unwrap_or_else(|| assess_with_nodata(grid, v))
+}
+
+/// [`assess`] of a triangle of twice-area 2 on a grid without nodata, in O(1): by Pick's
+/// theorem (2 = 2 · inside + on the outline − 2) it holds one sample besides its
+/// corners, the midpoint of its one side whose column and row differences are both even.
+/// The error is computed as [`read_within`] computes it (the same `f64`, to the bit).
+fn assess_midpoint<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
+    let p = v.map(Vertex::point);
+    let even = |(a, b): &((i64, i64), (i64, i64))| (a.0 - b.0) % 2 == 0 && (a.1 - b.1) % 2 == 0;
+    let sides = [(p[0], p[1]), (p[1], p[2]), (p[2], p[0])];
+    let (a, b) = sides.into_iter().find(even).unwrap_or(sides[0]);
+    let (x, y) = ((a.0 + b.0) / 2, (a.1 + b.1) / 2);
+    let (columns, rows) = (grid.candidate_columns, grid.candidate_rows);
+    if !(columns.0..=columns.1).contains(&x) || !(rows.0..=rows.1).contains(&y) {
+        return Assessment {
+            error: 0.0,
+            candidate: u32::MAX,
+            touches_void: false,
+        };
+    }
+    let (s, plane) = (grid.sample((x, y)), Plane::through(v));
+    let (error, _) = row_worst(&grid.heights[s..=s], plane.at(x, y), plane.gx);
+    Assessment {
+        error,
+        candidate: s as u32,
+        touches_void: false,
+    }
 }
 
 /// [`assess`], unless the triangle with corners `v` is on a grid with nodata, covers
@@ -566,6 +581,7 @@ fn read_within<H: Height>(
     let (p, plane) = (v.map(Vertex::point), Plane::through(v));
     let (mut error, mut candidate) = (-1.0f64, u32::MAX);
     let mut within = true;
+    let check_validity = check_validity && !grid.no_nodata;
     for_each_span(p, |y, lo, hi| {
         let row = y as usize * grid.width;
         if check_validity && !grid.all_valid(row + lo as usize, row + hi as usize) {
@@ -928,6 +944,46 @@ mod tests {
                 assert!((o.1 - r.1).abs() < 1e-9);
             }
         }
+    }
+
+    #[test]
+    fn a_twice_area_two_triangle_is_assessed_as_its_rows_are_read() {
+        // Every counter-clockwise triangle of twice-area 2 on a 9 × 9 lattice, on a whole
+        // grid and with the first row and last column shared (never candidates).
+        let (w, h) = (9, 9);
+        let heights: Vec<f64> = (0..w * h)
+            .map(|s| ((s * 7919) % 97) as f64 * 0.37)
+            .collect();
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let shared = SharedSides {
+            first_row: true,
+            last_column: true,
+            ..SharedSides::default()
+        };
+        let points: Vec<(i64, i64)> = (0..w * h)
+            .map(|k| ((k % w) as i64, (k / w) as i64))
+            .collect();
+        let mut checked = 0;
+        for g in [
+            grid(w, h, &heights, &valid),
+            grid(w, h, &heights, &valid).with_shared_sides(shared),
+        ] {
+            for &a in &points {
+                for &b in &points {
+                    for &c in &points {
+                        if twice_area([a, b, c]) != 2 {
+                            continue;
+                        }
+                        let v = corners(&g, [a, b, c]);
+                        let read = read_within(&g, v, f64::INFINITY, true).expect("no nodata");
+                        assert_eq!(assess_midpoint(&g, v), read, "{a:?} {b:?} {c:?}");
+                        assert_eq!(assess(&g, v), read);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000);
     }
 
     #[test]
