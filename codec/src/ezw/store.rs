@@ -14,13 +14,19 @@ pub trait Known {
     /// `w` wide, the horizontal and vertical ones counted twice.
     #[inline(always)]
     fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        let m = |j: usize| u64::from(self.at(j).unsigned_abs());
-        2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
-            + m(i - w - 1)
-            + m(i - w + 1)
-            + m(i + w - 1)
-            + m(i + w + 1)
+        neighbour_magnitudes(self, i, w)
     }
+}
+
+/// [`Known::interior_sum`] read one coefficient at a time.
+#[inline(always)]
+fn neighbour_magnitudes<K: Known + ?Sized>(known: &K, i: usize, w: usize) -> u64 {
+    let m = |j: usize| u64::from(known.at(j).unsigned_abs());
+    2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
+        + m(i - w - 1)
+        + m(i - w + 1)
+        + m(i + w - 1)
+        + m(i + w + 1)
 }
 
 impl Known for [i32] {
@@ -185,12 +191,7 @@ impl<const ESCAPES: bool> Narrow<ESCAPES> {
     #[cold]
     #[inline(never)]
     fn escaped_sum(&self, i: usize, w: usize) -> u64 {
-        let m = |j: usize| u64::from(self.at(j).unsigned_abs());
-        2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
-            + m(i - w - 1)
-            + m(i - w + 1)
-            + m(i + w - 1)
-            + m(i + w + 1)
+        neighbour_magnitudes(self, i, w)
     }
 
     /// [`Store::set`] where the old or the new value is escaped.
