@@ -45,11 +45,14 @@ use crate::wavelet::{Orientation, Subband};
 mod contexts;
 mod priors;
 mod propagation;
+mod store;
 #[cfg(feature = "research")]
 mod training;
 
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
+use std::marker::PhantomData;
+pub use store::{Known, Narrow, Store};
 #[cfg(feature = "research")]
 pub use training::{tally_priors, PriorTally, PRIOR_WINDOW};
 
@@ -184,45 +187,10 @@ impl CoefficientLayout {
     }
 }
 
-/// A coefficient as a decoder stores it: `i32`, or `i16` for streams whose coefficients
-/// all fit (see [`Decoder::try_run_from`]).
-pub trait Coefficient: Copy + Default + Send + std::fmt::Debug + 'static {
-    /// Highest own plane whose magnitudes (below 2^(plane + 1)) the type holds.
-    const MAX_PLANE: u32;
-    /// The value as an `i32`.
-    fn get(self) -> i32;
-    /// `v` stored (the caller knows it fits).
-    fn put(v: i32) -> Self;
-}
-
-impl Coefficient for i32 {
-    const MAX_PLANE: u32 = MAX_COEFFICIENT_PLANE;
-    #[inline(always)]
-    fn get(self) -> i32 {
-        self
-    }
-    #[inline(always)]
-    fn put(v: i32) -> i32 {
-        v
-    }
-}
-
-impl Coefficient for i16 {
-    const MAX_PLANE: u32 = 14;
-    #[inline(always)]
-    fn get(self) -> i32 {
-        i32::from(self)
-    }
-    #[inline(always)]
-    fn put(v: i32) -> i16 {
-        v as i16
-    }
-}
-
 /// What differs between encoding and decoding a scan.
 trait Side {
     /// How the known coefficients are stored.
-    type Value: Coefficient;
+    type Known: Known + ?Sized;
     /// Is coefficient `i` significant at own plane `p`?
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool;
     /// Is coefficient `i` negative?
@@ -247,7 +215,7 @@ trait Side {
     fn known_above(&self, i: usize, p: u32) -> u32;
     /// Every coefficient as far as it is known to both sides: the magnitude bits decided
     /// so far with their sign (0 while insignificant).
-    fn known(&self) -> &[Self::Value];
+    fn known(&self) -> &Self::Known;
 }
 
 /// The scans' state beside the known coefficients (a coefficient is significant when
@@ -801,7 +769,7 @@ impl<B: BitSink> EncoderSide<'_, B> {
 }
 
 impl<B: BitSink> Side for EncoderSide<'_, B> {
-    type Value = i32;
+    type Known = [i32];
     #[inline]
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i].unsigned_abs() >> p != 0;
@@ -1100,18 +1068,71 @@ fn measuring_side<'a, B: BitSink>(
     }
 }
 
-/// Decoder side: fills signed magnitudes bit by bit.
-struct DecoderSide<'a, V> {
+/// Decoder side: fills signed magnitudes bit by bit, the scans reading them through
+/// the view `V` ([`Checked`] or [`Saturated`]).
+struct DecoderSide<'a, S, V> {
     source: ArithmeticDecoder<'a>,
-    values: Vec<V>,
-    /// Whether a coefficient became significant above [`Coefficient::MAX_PLANE`].
-    outgrown: bool,
+    values: S,
     /// The coefficient of the last refinement decision of the current pass, if any.
     refined: Option<usize>,
+    view: PhantomData<V>,
 }
 
-impl<V: Coefficient> Side for DecoderSide<'_, V> {
-    type Value = V;
+impl<'a, S: Store> DecoderSide<'a, S, Checked> {
+    /// The side of a decode of `n` coefficients reading `source`.
+    fn new(source: ArithmeticDecoder<'a>, n: usize) -> Self {
+        DecoderSide {
+            source,
+            values: S::zeroed(n),
+            refined: None,
+            view: PhantomData,
+        }
+    }
+
+    /// The same side, its scans reading through [`Store::saturated`].
+    fn saturated(self) -> DecoderSide<'a, S, Saturated> {
+        DecoderSide {
+            source: self.source,
+            values: self.values,
+            refined: self.refined,
+            view: PhantomData,
+        }
+    }
+}
+
+/// How a decoder's scans read its store.
+trait View<S> {
+    /// What they read.
+    type Known: Known + ?Sized;
+    /// The store as they read it.
+    fn of(store: &S) -> &Self::Known;
+}
+
+/// Every value as it is.
+struct Checked;
+
+impl<S: Store> View<S> for Checked {
+    type Known = S;
+    #[inline(always)]
+    fn of(store: &S) -> &S {
+        store
+    }
+}
+
+/// Through [`Store::saturated`]: only in passes no band codes a plane above
+/// [`SATURATED_PLANE`] in.
+struct Saturated;
+
+impl<S: Store> View<S> for Saturated {
+    type Known = S::Saturated;
+    #[inline(always)]
+    fn of(store: &S) -> &S::Saturated {
+        store.saturated()
+    }
+}
+
+impl<S: Store, V: View<S>> Side for DecoderSide<'_, S, V> {
+    type Known = V::Known;
     #[inline]
     fn significance(&mut self, _i: usize, _p: u32, model: &mut BitModel) -> bool {
         self.source.decode(model)
@@ -1141,34 +1162,83 @@ impl<V: Coefficient> Side for DecoderSide<'_, V> {
     #[inline]
     fn commit_significant(&mut self, i: usize, _band: usize, p: u32, negative: bool) {
         let m = 1i32 << p;
-        self.outgrown |= p > V::MAX_PLANE;
-        self.values[i] = V::put(if negative { -m } else { m });
+        self.values.set(i, if negative { -m } else { m });
     }
     #[inline]
     fn commit_refinement(&mut self, i: usize, _band: usize, p: u32, bit: bool) {
         if bit {
-            let v = self.values[i].get();
-            self.values[i] = V::put(if v < 0 { v - (1 << p) } else { v + (1 << p) });
+            self.values.grow(i, p);
         }
     }
     #[inline]
     fn is_negative(&self, i: usize) -> bool {
-        self.values[i].get() < 0
+        V::of(&self.values).at(i) < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
-        self.values[i].get().unsigned_abs() >> (p + 1)
+        V::of(&self.values).at(i).unsigned_abs() >> (p + 1)
     }
     #[inline]
-    fn known(&self) -> &[V] {
-        &self.values
+    fn known(&self) -> &V::Known {
+        V::of(&self.values)
     }
 }
 
-/// The state of a decode: the bits known of every coefficient, stored as `V`.
+/// The highest plane of the passes a decoder's scans may read through
+/// [`Store::saturated`]: there an escaped magnitude (at least 32767, seen as 32767 or
+/// 32768) saturates every context it takes part in, as the true one does: the activity and
+/// refinement levels of `sum >> p ≥ 64` (32767 >> 8 = 127), the parent level of
+/// `m >> p >> 2 ≥ 1`, the refinement age of `m >> (p + 1) ≥ 4`.
+pub const SATURATED_PLANE: u32 = 8;
+
+/// A decode's passes: what they share, and how far they went.
+struct PassRun<'l> {
+    layout: &'l CoefficientLayout,
+    grid: FlagGrid,
+    contexts: Contexts,
+    /// Passes the decode means to run (for the progress report).
+    planned: u32,
+    passes_completed: u32,
+    /// Where the decode stopped inside a pass, if it did.
+    stop: Option<Stop>,
+}
+
+impl PassRun<'_> {
+    /// Runs the passes of `planes` (global planes, in decreasing order) while the
+    /// payload lasts and [`Self::planned`] allows: whether every one of them ran to its
+    /// end, `None` when the store overflowed.
+    fn passes<S: Store, V: View<S>>(
+        &mut self,
+        side: &mut DecoderSide<'_, S, V>,
+        planes: impl Iterator<Item = i64>,
+    ) -> Option<bool> {
+        for n in planes {
+            if self.passes_completed >= self.planned {
+                return Some(false);
+            }
+            side.refined = None;
+            let n = n as u32;
+            let end = scan_pass(self.layout, &mut self.grid, &mut self.contexts, side, n);
+            if side.values.overflowed() {
+                return None;
+            }
+            if let ScanEnd::Stopped = end {
+                let refined = side.refined;
+                self.stop = Some(Stop { pass: n, refined });
+                return Some(false);
+            }
+            self.passes_completed += 1;
+            // The inverse transform comes last.
+            report_pass(self.layout, self.passes_completed, self.planned + 1);
+        }
+        Some(true)
+    }
+}
+
+/// The state of a decode: the bits known of every coefficient, kept in `S`.
 #[derive(Debug, Clone)]
-pub struct Decoder<V = i32> {
-    values: Vec<V>,
+pub struct Decoder<S = Vec<i32>> {
+    values: S,
     /// Every band's place and shift.
     bands: Vec<(Subband, u32)>,
     width: usize,
@@ -1214,57 +1284,35 @@ impl Decoder {
     }
 }
 
-impl<V: Coefficient> Decoder<V> {
-    /// As [`Decoder::run_from`], storing the coefficients as `V`: `None` (at the end of
-    /// the first pass that shows it) when a coefficient does not fit in a `V`.
+impl<S: Store> Decoder<S> {
+    /// As [`Decoder::run_from`], keeping the coefficients in `S`: `None` (at the end of
+    /// the first pass that shows it) when `S` overflows.
     pub fn try_run_from(
         layout: &CoefficientLayout,
         coder: Coder,
         source: ArithmeticDecoder<'_>,
         top_plane: Option<u32>,
         max_passes: Option<u32>,
-    ) -> Option<Decoder<V>> {
-        let n_coefficients = layout.len();
-        let mut side = DecoderSide {
-            source,
-            values: vec![V::default(); n_coefficients],
-            outgrown: false,
-            refined: None,
+    ) -> Option<Decoder<S>> {
+        let mut run = PassRun {
+            layout,
+            grid: FlagGrid::new(layout, coder),
+            contexts: Contexts::new(coder, ContextChoice::ALL),
+            planned: top_plane.map_or(0, |top| max_passes.map_or(top + 1, |m| m.min(top + 1))),
+            passes_completed: 0,
+            stop: None,
         };
-        let mut grid = FlagGrid::new(layout, coder);
-        let mut contexts = Contexts::new(coder, ContextChoice::ALL);
-        let mut passes_completed = 0;
-        let mut complete = true;
-        let mut stop = None;
-        if let Some(top) = top_plane {
-            for n in (0..=top).rev() {
-                if max_passes.is_some_and(|limit| passes_completed >= limit) {
-                    complete = false;
-                    break;
-                }
-                side.refined = None;
-                let end = scan_pass(layout, &mut grid, &mut contexts, &mut side, n);
-                if side.outgrown {
-                    return None;
-                }
-                match end {
-                    ScanEnd::Finished => {
-                        passes_completed += 1;
-                        // The inverse transform comes last.
-                        let planned = max_passes.map_or(top + 1, |m| m.min(top + 1));
-                        report_pass(layout, passes_completed, planned + 1);
-                    }
-                    ScanEnd::Stopped => {
-                        complete = false;
-                        stop = Some(Stop {
-                            pass: n,
-                            refined: side.refined,
-                        });
-                        break;
-                    }
-                }
-            }
+        let mut side = DecoderSide::<S, Checked>::new(source, layout.len());
+        let top = top_plane.map_or(-1, |t| t as i64);
+        let saturated_top = top.min(i64::from(SATURATED_PLANE));
+        // The passes above SATURATED_PLANE, then the others.
+        let mut going = run.passes(&mut side, (saturated_top + 1..=top).rev())?;
+        let mut side = side.saturated();
+        if going {
+            going = run.passes(&mut side, (0..=saturated_top).rev())?;
         }
+        let complete = going && run.stop.is_none();
+        let (passes_completed, stop) = (run.passes_completed, run.stop);
         Some(Decoder {
             values: side.values,
             bands: layout.bands.iter().map(|b| (b.sub, b.shift)).collect(),
@@ -1278,17 +1326,21 @@ impl<V: Coefficient> Decoder<V> {
 
     /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
     /// are known.
-    pub fn integer_coefficients(mut self) -> Vec<V> {
+    pub fn integer_coefficients(mut self) -> S {
         self.map_significant(|v, p| {
             let extra = (((1u64 << p) - 1) / 2) as i32;
-            V::put(if v < 0 { v - extra } else { v + extra })
+            if v < 0 {
+                v - extra
+            } else {
+                v + extra
+            }
         });
         self.values
     }
 
     /// Replaces every significant coefficient `v` by `f(v, p)`, `p` the lowest plane
     /// known of it; the others stay 0.
-    fn map_significant(&mut self, f: impl Fn(i32, u32) -> V) {
+    fn map_significant(&mut self, f: impl Fn(i32, u32) -> i32) {
         let w = self.width;
         let refined_band = self.stop.and_then(|s| s.refined).map(|r| {
             let (x, y) = (r % w, r / w);
@@ -1302,11 +1354,11 @@ impl<V: Coefficient> Decoder<V> {
             let planes = self.band_planes(b, shift, refined_band.flatten());
             for y in 0..sub.height {
                 let start = (sub.y0 + y) * w + sub.x0;
-                let row = &mut self.values[start..start + sub.width];
-                for (i, v) in (start..).zip(row) {
-                    let value = v.get();
+                for i in start..start + sub.width {
+                    let value = self.values.at(i);
                     if value != 0 {
-                        *v = f(value, planes.lowest(i, value.unsigned_abs()));
+                        self.values
+                            .set(i, f(value, planes.lowest(i, value.unsigned_abs())));
                     }
                 }
             }
@@ -1462,45 +1514,64 @@ mod tests {
         assert_eq!(dec.integer_coefficients(), coefficients);
     }
 
-    /// The decoder of `bytes` (a prefix when not `complete`) storing `V`.
-    fn decode_as<V: Coefficient>(
+    /// The decoder of `bytes` (a prefix when not `complete`) keeping its coefficients
+    /// in `S`.
+    fn decode_as<S: Store>(
         layout: &CoefficientLayout,
         bytes: &[u8],
         complete: bool,
         top: Option<u32>,
-    ) -> Option<Decoder<V>> {
+    ) -> Option<Decoder<S>> {
         let source = ArithmeticDecoder::new(bytes, complete);
         Decoder::try_run_from(layout, Coder::default(), source, top, None)
     }
 
+    /// The reconstructed coefficients of a decoder of `n` coefficients, as `i32`.
+    fn reconstructed<S: Store>(decoder: Decoder<S>, n: usize) -> Vec<i32> {
+        let store = decoder.integer_coefficients();
+        (0..n).map(|i| store.at(i)).collect()
+    }
+
     #[test]
-    fn i16_decoder_matches_i32_and_declines_what_does_not_fit() {
+    fn narrow_decoders_match_i32_and_decline_what_does_not_fit() {
         let (w, h) = (48, 40);
         let layout = layout_for(w, h, 3, |s| s.level);
-        // Magnitudes up to 32767 fit; one of 32768 (plane 15) does not.
+        // Magnitudes up to 32767 fit without escapes; a few of 32768 and more (plane
+        // 15 and up) only with them.
         let mut c = pseudo_random(w * h, 11, 32767);
         c[5] = -32767;
-        let top = top_plane(&layout, &c);
-        let full = unit_weight_encode(&layout, &c, None);
-        for cut in [full.bytes.len(), 900, 300] {
-            let bytes = &full.bytes[..cut];
-            let complete = cut == full.bytes.len();
-            let wide = decode_as::<i32>(&layout, bytes, complete, top).unwrap();
-            let narrow = decode_as::<i16>(&layout, bytes, complete, top).unwrap();
-            assert_eq!(narrow.passes_completed, wide.passes_completed);
-            let narrow: Vec<i32> = narrow
-                .integer_coefficients()
-                .into_iter()
-                .map(i32::from)
-                .collect();
-            assert_eq!(narrow, wide.integer_coefficients(), "{cut} bytes");
+        for wide_ones in [false, true] {
+            if wide_ones {
+                (c[0], c[1], c[7], c[w + 3]) = (-32768, 70000, 40000, -1 << 20);
+            }
+            let top = top_plane(&layout, &c);
+            let full = unit_weight_encode(&layout, &c, None);
+            for cut in [full.bytes.len(), 900, 300] {
+                let bytes = &full.bytes[..cut];
+                let complete = cut == full.bytes.len();
+                let wide = decode_as::<Vec<i32>>(&layout, bytes, complete, top).unwrap();
+                let passes = wide.passes_completed;
+                let wide = reconstructed(wide, w * h);
+                let escaped = decode_as::<Narrow<true>>(&layout, bytes, complete, top).unwrap();
+                assert_eq!(escaped.passes_completed, passes);
+                assert_eq!(reconstructed(escaped, w * h), wide, "{cut} bytes");
+                let plain = decode_as::<Narrow<false>>(&layout, bytes, complete, top);
+                // The first pass shows the coefficient of plane 20.
+                assert_eq!(plain.is_none(), wide_ones, "{cut} bytes");
+                if let Some(plain) = plain {
+                    assert_eq!(reconstructed(plain, w * h), wide, "{cut} bytes");
+                }
+            }
+            if wide_ones {
+                assert_eq!(
+                    reconstructed(
+                        decode_as::<Vec<i32>>(&layout, &full.bytes, true, top).unwrap(),
+                        w * h
+                    ),
+                    c
+                );
+            }
         }
-        c[5] = 32768;
-        let top = top_plane(&layout, &c);
-        let full = unit_weight_encode(&layout, &c, None);
-        assert!(decode_as::<i16>(&layout, &full.bytes, true, top).is_none());
-        let wide = decode_as::<i32>(&layout, &full.bytes, true, top).unwrap();
-        assert_eq!(wide.integer_coefficients(), c);
     }
 
     #[test]
@@ -1512,7 +1583,8 @@ mod tests {
         let top = top_plane(&layout, &c);
         for cut in (1..=full.bytes.len()).step_by(7) {
             let complete = cut == full.bytes.len();
-            let mut dec = decode_as::<i32>(&layout, &full.bytes[..cut], complete, top).unwrap();
+            let mut dec =
+                decode_as::<Vec<i32>>(&layout, &full.bytes[..cut], complete, top).unwrap();
             let known = dec.values.clone();
             // Each significant coefficient as (its known magnitude, its lowest plane).
             dec.map_significant(|v, p| (v.unsigned_abs() << 5 | p) as i32);

@@ -34,6 +34,8 @@
 
 mod support;
 
+use std::collections::BTreeMap;
+
 pub(crate) use support::zero_unreached;
 
 /// Which wavelet a stream uses.
@@ -201,19 +203,35 @@ pub fn forward_53(data: &mut [i32], width: usize, height: usize, levels: u32) {
 /// If `data.len() != width * height` or `levels > max_levels(width, height)`.
 pub fn inverse_53(data: &mut [i32], width: usize, height: usize, levels: u32) {
     check_args(data.len(), width, height, levels);
-    inverse_2d(&Int53Kernel, data, width, height, levels);
+    inverse_2d(&Int53Kernel, data, width, height, levels, &mut NoSpill);
 }
 
-/// [`inverse_53`] on coefficients stored as `i16`, lifted in `i32` line buffers. Returns
-/// whether every value it stored (each level's outputs) fitted in an `i16`: only then is
-/// `data` what [`inverse_53`] makes of the same coefficients as `i32`.
+/// [`inverse_53`] on coefficients stored as `i16`, lifted in `i32` line buffers, with the
+/// values that do not fit in an `i16` (coefficients, each level's outputs) kept in
+/// `spilled` by index (their slots in `data` are left as they are): on input, the
+/// coefficients whose value is there; on output, the samples. Returns false, `data`
+/// unfinished, when `spilled` would hold more than [`max_spilled`] values; else `data`
+/// with `spilled` is what [`inverse_53`] makes of the same coefficients as `i32`.
 ///
 /// # Panics
 ///
 /// If `data.len() != width * height` or `levels > max_levels(width, height)`.
-pub fn inverse_53_i16(data: &mut [i16], width: usize, height: usize, levels: u32) -> bool {
+pub fn inverse_53_i16(
+    data: &mut [i16],
+    spilled: &mut BTreeMap<usize, i32>,
+    width: usize,
+    height: usize,
+    levels: u32,
+) -> bool {
     check_args(data.len(), width, height, levels);
-    inverse_2d(&Int53Kernel, data, width, height, levels)
+    let cap = max_spilled(data.len());
+    let mut spill = SpillMap { map: spilled, cap };
+    spill.map.len() <= cap && inverse_2d(&Int53Kernel, data, width, height, levels, &mut spill)
+}
+
+/// Most values [`inverse_53_i16`] keeps beside `n` samples: one in 64 (and 64).
+pub fn max_spilled(n: usize) -> usize {
+    n / 64 + 64
 }
 
 /// Forward CDF 9/7 of a `width × height` image, in place.
@@ -240,7 +258,7 @@ pub fn forward_97(data: &mut [f32], width: usize, height: usize, levels: u32) {
 /// If `data.len() != width * height` or `levels > max_levels(width, height)`.
 pub fn inverse_97(data: &mut [f32], width: usize, height: usize, levels: u32) {
     check_args(data.len(), width, height, levels);
-    inverse_2d(&CDF97, data, width, height, levels);
+    inverse_2d(&CDF97, data, width, height, levels, &mut NoSpill);
 }
 
 /// Synthesis L2 norms per subband, in [`subbands`] order: for each subband, the L2 norm of
@@ -311,7 +329,7 @@ pub fn plane_shifts(norms: &[f64]) -> Vec<u32> {
 fn unit_norm_1d(kernel: &Linear, n: usize, levels: u32, pos: usize) -> f64 {
     let mut buf = vec![0.0f64; n];
     buf[pos] = 1.0;
-    inverse_2d(kernel, &mut buf, n, 1, levels);
+    inverse_2d(kernel, &mut buf, n, 1, levels, &mut NoSpill);
     buf.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
@@ -621,13 +639,15 @@ fn forward_2d<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`forward_2d`]; whether every value stored fitted (see [`Sample::fits`]).
+/// Inverse of [`forward_2d`]; whether every value stored fitted (see [`Sample::fits`])
+/// or `spill` kept it.
 fn inverse_2d<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
     width: usize,
     height: usize,
     levels: u32,
+    spill: &mut impl Spill<T::Work>,
 ) -> bool {
     if width == 0 || height == 0 {
         return true;
@@ -639,8 +659,10 @@ fn inverse_2d<T: Sample, K: Kernel<T::Work>>(
         .take(levels as usize)
         .rev()
     {
-        fits &= cols_synthesize(kernel, data, width, lw, lh, &mut scratch);
-        fits &= rows_synthesize(kernel, data, width, lw, lh, &mut scratch);
+        let region = Region { width, lw, lh };
+        fits = fits
+            && cols_synthesize(kernel, data, region, &mut scratch, spill)
+            && rows_synthesize(kernel, data, region, &mut scratch, spill);
     }
     fits
 }
@@ -675,27 +697,38 @@ fn rows_analyze<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`rows_analyze`]; whether every value stored fitted.
-fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
-    kernel: &K,
-    data: &mut [T],
+/// A level's region: the first `lw` columns of the first `lh` rows of an image `width`
+/// wide.
+#[derive(Clone, Copy)]
+struct Region {
     width: usize,
     lw: usize,
     lh: usize,
+}
+
+/// Inverse of [`rows_analyze`]; whether every value stored fitted or was spilled.
+fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
+    kernel: &K,
+    data: &mut [T],
+    Region { width, lw, lh }: Region,
     scratch: &mut [T::Work],
+    spill: &mut impl Spill<T::Work>,
 ) -> bool {
     if lw < 2 {
         return true;
     }
-    let mut fits = true;
     let nl = lw.div_ceil(2);
     let (lo, rest) = scratch.split_at_mut(nl);
     let hi = &mut rest[..lw - nl];
-    for row in data.chunks_exact_mut(width).take(lh) {
+    for (y, row) in data.chunks_exact_mut(width).take(lh).enumerate() {
+        let start = y * width;
         let row = &mut row[..lw];
         load(lo, &row[..nl]);
         load(hi, &row[nl..]);
+        spill.patch(start, lo);
+        spill.patch(start + nl, hi);
         kernel.synthesize(lo, hi, 1);
+        let mut fits = true;
         for ((pair, &l), &h) in row.chunks_exact_mut(2).zip(lo.iter()).zip(hi.iter()) {
             fits &= T::fits(l) & T::fits(h);
             pair[0] = T::narrow(l);
@@ -705,8 +738,11 @@ fn rows_synthesize<T: Sample, K: Kernel<T::Work>>(
             fits &= T::fits(lo[nl - 1]);
             row[lw - 1] = T::narrow(lo[nl - 1]);
         }
+        if !(spill.settle(start, 2, lo, fits) && spill.settle(start + 1, 2, hi, fits)) {
+            return false;
+        }
     }
-    fits
+    true
 }
 
 /// 1-D analysis of the first `lh` samples of the first `lw` columns, [`STRIP`] columns at
@@ -750,19 +786,17 @@ fn cols_analyze<T: Sample, K: Kernel<T::Work>>(
     }
 }
 
-/// Inverse of [`cols_analyze`]; whether every value stored fitted.
+/// Inverse of [`cols_analyze`]; whether every value stored fitted or was spilled.
 fn cols_synthesize<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
-    width: usize,
-    lw: usize,
-    lh: usize,
+    Region { width, lw, lh }: Region,
     scratch: &mut [T::Work],
+    spill: &mut impl Spill<T::Work>,
 ) -> bool {
     if lh < 2 {
         return true;
     }
-    let mut fits = true;
     let nl = lh.div_ceil(2);
     let nh = lh - nl;
     let mut x0 = 0;
@@ -777,19 +811,96 @@ fn cols_synthesize<T: Sample, K: Kernel<T::Work>>(
         {
             let src = i * width + x0;
             load(dst, &data[src..src + lanes]);
+            spill.patch(src, dst);
         }
         kernel.synthesize(lo, hi, lanes);
         for (i, src) in lo.chunks_exact(lanes).enumerate() {
             let dst = 2 * i * width + x0;
-            fits &= store_fits(&mut data[dst..dst + lanes], src);
+            let fits = store_fits(&mut data[dst..dst + lanes], src);
+            if !spill.settle(dst, 1, src, fits) {
+                return false;
+            }
         }
         for (i, src) in hi.chunks_exact(lanes).enumerate() {
             let dst = (2 * i + 1) * width + x0;
-            fits &= store_fits(&mut data[dst..dst + lanes], src);
+            let fits = store_fits(&mut data[dst..dst + lanes], src);
+            if !spill.settle(dst, 1, src, fits) {
+                return false;
+            }
         }
         x0 += lanes;
     }
-    fits
+    true
+}
+
+/// Where an inverse transform keeps the values its buffer's type cannot hold.
+trait Spill<W> {
+    /// Overwrites the values of `dst`, read from `start..` of the buffer, that are kept
+    /// here.
+    fn patch(&self, start: usize, dst: &mut [W]);
+    /// After `src` was stored at every `stride`-th place from `start` (`fitted`: every
+    /// value fitted): forgets what was kept at those places, keeps the values that did
+    /// not fit; false when it cannot.
+    fn settle(&mut self, start: usize, stride: usize, src: &[W], fitted: bool) -> bool;
+}
+
+/// No spilling: a value that does not fit fails the transform.
+struct NoSpill;
+
+impl<W> Spill<W> for NoSpill {
+    #[inline(always)]
+    fn patch(&self, _start: usize, _dst: &mut [W]) {}
+    #[inline(always)]
+    fn settle(&mut self, _start: usize, _stride: usize, _src: &[W], fitted: bool) -> bool {
+        fitted
+    }
+}
+
+/// Spilled `i16` values by index, at most `cap` of them.
+struct SpillMap<'a> {
+    map: &'a mut BTreeMap<usize, i32>,
+    cap: usize,
+}
+
+impl Spill<i32> for SpillMap<'_> {
+    #[inline(always)]
+    fn patch(&self, start: usize, dst: &mut [i32]) {
+        if !self.map.is_empty() {
+            self.patch_kept(start, dst);
+        }
+    }
+    #[inline(always)]
+    fn settle(&mut self, start: usize, stride: usize, src: &[i32], fitted: bool) -> bool {
+        (fitted && self.map.is_empty()) || self.settle_kept(start, stride, src)
+    }
+}
+
+impl SpillMap<'_> {
+    /// [`Spill::patch`] with some values kept.
+    #[cold]
+    fn patch_kept(&self, start: usize, dst: &mut [i32]) {
+        for (&i, &v) in self.map.range(start..start + dst.len()) {
+            dst[i - start] = v;
+        }
+    }
+
+    /// [`Spill::settle`] with some values kept or to keep.
+    #[cold]
+    fn settle_kept(&mut self, start: usize, stride: usize, src: &[i32]) -> bool {
+        let end = start + stride * src.len();
+        let stale: Vec<usize> = (self.map.range(start..end).map(|(&i, _)| i))
+            .filter(|i| (i - start).is_multiple_of(stride))
+            .collect();
+        for i in stale {
+            self.map.remove(&i);
+        }
+        for (k, &v) in src.iter().enumerate() {
+            if !i16::fits(v) {
+                self.map.insert(start + k * stride, v);
+            }
+        }
+        self.map.len() <= self.cap
+    }
 }
 
 #[cfg(test)]
@@ -880,37 +991,57 @@ mod tests {
     #[test]
     fn inverse_53_in_i16_matches_i32_or_says_it_did_not_fit() {
         let mut rng = Rng(7);
-        for &(w, h, levels) in &[(1, 1, 0), (9, 1, 3), (33, 17, 4), (64, 48, 5)] {
-            // Noise of ±4000: every coefficient and every value of the inverse fits.
-            let data: Vec<i32> = (0..w * h)
-                .map(|_| (rng.next() % 8000) as i32 - 4000)
-                .collect();
-            let mut coefficients = data.clone();
-            forward_53(&mut coefficients, w, h, levels);
-            let mut narrow: Vec<i16> = coefficients
-                .iter()
-                .map(|&c| i16::try_from(c).unwrap())
-                .collect();
-            assert!(inverse_53_i16(&mut narrow, w, h, levels));
-            assert!(narrow
-                .iter()
-                .map(|&v| i32::from(v))
-                .eq(data.iter().copied()));
-            // Smooth data keeps every value in range.
-            let smooth: Vec<i32> = (0..w * h).map(|i| (i % w + i / w) as i32 * 50).collect();
-            let mut c = smooth.clone();
-            forward_53(&mut c, w, h, levels);
-            let mut narrow: Vec<i16> = c.iter().map(|&c| c as i16).collect();
-            assert!(inverse_53_i16(&mut narrow, w, h, levels));
-            assert!(narrow
-                .iter()
-                .map(|&v| i32::from(v))
-                .eq(smooth.iter().copied()));
+        let sizes = [
+            (1, 1, 0),
+            (9, 1, 3),
+            (1, 13, 3),
+            (33, 17, 4),
+            (64, 48, 5),
+            (65, 47, 5),
+        ];
+        for &(w, h, levels) in &sizes {
+            // Noise of ±4000 fits everywhere; a ramp over 0 ..= 65535 shifted down by
+            // 32768 (a u16 raster spanning its range, shifted as the decoder shifts it)
+            // with three samples beyond i16 has coefficients and values of the inverse
+            // that do not fit: those are spilled.
+            for wide in [false, true] {
+                let mut data: Vec<i32> = (0..w * h)
+                    .map(|i| match wide {
+                        false => (rng.next() % 8000) as i32 - 4000,
+                        true => ((i % w + i / w) * 65535 / (w + h)) as i32 - 32768,
+                    })
+                    .collect();
+                if wide {
+                    for v in [40000, -40000, 33000] {
+                        data[(rng.next() % (w * h) as u64) as usize] = v;
+                    }
+                }
+                let mut coefficients = data.clone();
+                forward_53(&mut coefficients, w, h, levels);
+                let mut spilled = BTreeMap::new();
+                let mut narrow: Vec<i16> = (coefficients.iter().enumerate())
+                    .map(|(i, &c)| {
+                        i16::try_from(c).unwrap_or_else(|_| {
+                            spilled.insert(i, c);
+                            i16::MIN
+                        })
+                    })
+                    .collect();
+                let spilled_before = spilled.len();
+                assert!(inverse_53_i16(&mut narrow, &mut spilled, w, h, levels));
+                let back = (narrow.iter().enumerate())
+                    .map(|(i, &v)| spilled.get(&i).copied().unwrap_or(v.into()));
+                assert!(back.eq(data.iter().copied()), "{w}x{h}, wide {wide}");
+                assert_eq!(spilled_before + spilled.len() > 0, wide, "{w}x{h}");
+            }
         }
-        // Coefficients that fit, an image that does not: 30000 at every sample of a
-        // 2x2 image's LL and details reconstructs values beyond i16.
-        let mut big = vec![30000i16; 4];
-        assert!(!inverse_53_i16(&mut big, 2, 2, 1));
+        // More values beyond i16 than one in 64: 40000 at every sample of a 64x64 LL.
+        let mut big = vec![0i16; 64 * 64];
+        let mut spilled: BTreeMap<usize, i32> = (0..64 * 64).map(|i| (i, 40000)).collect();
+        assert!(!inverse_53_i16(&mut big, &mut spilled, 64, 64, 0));
+        let mut spilled: BTreeMap<usize, i32> =
+            (0..max_spilled(64 * 64)).map(|i| (i, 40000)).collect();
+        assert!(inverse_53_i16(&mut big, &mut spilled, 64, 64, 0));
     }
 
     fn roundtrip_53(data: &[i32], w: usize, h: usize, levels: u32) {
@@ -1344,7 +1475,7 @@ mod tests {
                     }
                     let mut img = vec![0.0f64; w * h];
                     img[(band.y0 + band.height / 2) * w + band.x0 + band.width / 2] = 1.0;
-                    inverse_2d(kernel, &mut img, w, h, levels);
+                    inverse_2d(kernel, &mut img, w, h, levels, &mut NoSpill);
                     let brute = img.iter().map(|v| v * v).sum::<f64>().sqrt();
                     assert!(
                         (brute - norm).abs() < 1e-9 * brute,

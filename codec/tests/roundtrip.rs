@@ -443,3 +443,33 @@ fn wide_range_integers_round_trip() {
         raster
     );
 }
+
+#[test]
+fn full_range_u16_decodes_as_the_i32_path_does_from_every_prefix() {
+    // A massif spanning 0 ..= 65535 (as alps_montblanc does): its LL coefficients pass
+    // plane 14, so the i16 decode keeps them escaped, and near its extremes the inverse
+    // transform overshoots the range. A decode asking for a significance map takes the
+    // i32 path: both must give the same samples, whole or cut.
+    let (w, h) = (97, 75);
+    let values: Vec<u16> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64 / w as f64, (i / w) as f64 / h as f64);
+            let peak = (-((x - 0.6).powi(2) + (y - 0.4).powi(2)) * 9.0).exp();
+            let ridges = 0.08 * ((x * 41.0).sin() * (y * 37.0).cos());
+            ((peak + ridges).clamp(0.0, 1.0) * 65535.0) as u16
+        })
+        .collect();
+    assert!(values.contains(&0) && values.contains(&65535));
+    let raster = Raster::new(w, h, Samples::U16(values)).unwrap();
+    let encoded = encode(&raster, &EncodeOptions::new(Quality::Lossless, None)).unwrap();
+    let wide = DecodeOptions::default().with_significance_map(true);
+    for cut in [encoded.bytes.len(), encoded.bytes.len() / 3, 700] {
+        let options = DecodeOptions::default().with_max_bytes(Some(cut as u64));
+        let narrow = decode(&encoded.bytes, &options).unwrap().raster;
+        let wide = decode(&encoded.bytes, &wide.with_max_bytes(Some(cut as u64)));
+        assert_eq!(narrow, wide.unwrap().raster, "{cut} bytes");
+        if cut == encoded.bytes.len() {
+            assert_eq!(narrow, raster);
+        }
+    }
+}

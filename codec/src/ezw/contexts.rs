@@ -3,7 +3,7 @@
 //! values, which say which are significant, and the parent).
 
 use super::priors::primed;
-use super::{Coefficient, FlagGrid, ParentRow, Side};
+use super::{FlagGrid, Known, ParentRow, Side};
 use crate::entropy::BitModel;
 
 /// Which context information the models are selected by (all of it in every stream; the
@@ -180,14 +180,14 @@ fn sign_state<S: Side>(side: &S, j: Option<usize>) -> usize {
 
 /// Whether coefficient `j` is significant: its known value is not 0.
 #[inline(always)]
-fn significant<V: Coefficient>(known: &[V], j: usize) -> bool {
-    known[j].get() != 0
+fn significant<K: Known + ?Sized>(known: &K, j: usize) -> bool {
+    known.at(j) != 0
 }
 
 /// Significant neighbours of coefficient `at`: (left+right+up+down capped at 2, any
 /// diagonal).
 #[inline]
-fn neighbourhood<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> (usize, usize) {
+fn neighbourhood<K: Known + ?Sized>(grid: &FlagGrid, known: &K, at: At) -> (usize, usize) {
     let sig = |dx: isize, dy: isize| {
         grid.neighbour(at, dx, dy)
             .is_some_and(|j| significant(known, j)) as usize
@@ -244,7 +244,7 @@ pub(super) fn dominant_contexts<S: Side>(
                 0
             };
             let parent = parent.map_or(0, |(pr, j)| {
-                let known = side.known()[j].get().unsigned_abs();
+                let known = side.known().at(j).unsigned_abs();
                 1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
             });
             let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
@@ -256,16 +256,12 @@ pub(super) fn dominant_contexts<S: Side>(
 /// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
 /// ones counted twice.
 #[inline]
-fn neighbour_sum<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> u64 {
+fn neighbour_sum<K: Known + ?Sized>(grid: &FlagGrid, known: &K, at: At) -> u64 {
     let w = grid.width;
     let i = at.index;
-    let m = |j: usize| u64::from(known[j].get().unsigned_abs());
+    let m = |j: usize| u64::from(known.at(j).unsigned_abs());
     if at.interior {
-        return 2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
-            + m(i - w - 1)
-            + m(i - w + 1)
-            + m(i + w - 1)
-            + m(i + w + 1);
+        return known.interior_sum(i, w);
     }
     // On the array's edge: only the neighbours inside it count.
     let mut sum = 0u64;
@@ -288,10 +284,10 @@ fn neighbour_sum<V: Coefficient>(grid: &FlagGrid, known: &[V], at: At) -> u64 {
 
 /// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
 #[inline]
-pub(super) fn refinement_context<V: Coefficient>(
+pub(super) fn refinement_context<K: Known + ?Sized>(
     contexts: &Contexts,
     grid: &FlagGrid,
-    known: &[V],
+    known: &K,
     at: At,
     p: u32,
     age: usize,

@@ -5,10 +5,10 @@ use crate::container::{physical_offset, Header, StreamSections, CHUNK};
 use crate::corrections::apply_corrections;
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
-use crate::ezw::{CoefficientLayout, Decoder};
+use crate::ezw::{CoefficientLayout, Decoder, Known, Narrow, Store};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{integer_samples, rescale_97, to_samples, whole_offset};
+use crate::quantize::{integer_samples, rescale_97, to_samples, whole_offset, ValueMapping};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
@@ -319,8 +319,8 @@ fn reconstruction(
         && whole_offset(header.mapping)
         && !options.significance_map;
     if narrow {
-        let source = payload_source(sections, payload_complete);
-        if let Some(done) = narrow_reconstruction(&layout, header, source, options, mask) {
+        let payload = (sections, payload_complete);
+        if let Some(done) = narrow_reconstruction(&layout, header, payload, options, mask) {
             return done;
         }
     }
@@ -345,31 +345,88 @@ fn reconstruction(
 
 /// The 5/3 decode of a stream of 1- or 2-byte integer samples (whole offset) with
 /// coefficients and inverse transform in `i16`, half the memory of `i32`, the samples
-/// made in place: `None` (after the first pass that shows it, or after the inverse) when
-/// a coefficient or a value of the inverse transform does not fit, for an `i32` decode.
+/// made in place: first with no coefficient escaped (no test on reading one), then, after
+/// the first pass that shows one does not fit, with the few that do not escaped
+/// ([`Narrow`]). `None` when too many coefficients or values of the inverse transform do
+/// not fit, for an `i32` decode.
 fn narrow_reconstruction(
     layout: &CoefficientLayout,
     header: &Header,
-    source: ArithmeticDecoder<'_>,
+    (sections, payload_complete): (&StreamSections, bool),
     options: &DecodeOptions,
     mask: Option<&BitSlice<u64, Lsb0>>,
 ) -> Option<Reconstruction> {
     let top_plane = header.top_plane.map(u32::from);
-    let decoder =
-        Decoder::<i16>::try_run_from(layout, header.coder, source, top_plane, options.max_passes)?;
-    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
-    let mut coefficients = decoder.integer_coefficients();
-    let (width, height) = (header.width as usize, header.height as usize);
-    if !wavelet::inverse_53_i16(&mut coefficients, width, height, header.levels as u32) {
-        return None;
+    let source = || payload_source(sections, payload_complete);
+    let (coder, max_passes) = (header.coder, options.max_passes);
+    if let Some(decoder) =
+        Decoder::<Narrow<false>>::try_run_from(layout, coder, source(), top_plane, max_passes)
+    {
+        return narrow_samples(decoder, header, mask);
     }
-    let (mapping, nodata) = (header.mapping, header.nodata);
+    let decoder =
+        Decoder::<Narrow<true>>::try_run_from(layout, coder, source(), top_plane, max_passes)?;
+    narrow_samples(decoder, header, mask)
+}
+
+/// The samples of a [`narrow_reconstruction`]'s decode.
+fn narrow_samples<const ESCAPES: bool>(
+    decoder: Decoder<Narrow<ESCAPES>>,
+    header: &Header,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Option<Reconstruction> {
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    // The samples are kept as their difference to the middle of their type's range.
+    let (lo, hi) = header.sample_type.value_range();
+    let centre = ((lo + hi) / 2.0).ceil();
+    let shift = i32::try_from((centre - header.mapping.offset) as i64).ok()?;
+    let (width, height) = (header.width as usize, header.height as usize);
+    let levels = header.levels as u32;
+    let values = narrow_inverse_53(decoder.integer_coefficients(), width, height, levels, shift)?;
+    let mapping = ValueMapping {
+        offset: centre,
+        step: 1.0,
+    };
     Some(Reconstruction {
-        samples: integer_samples(header.sample_type, coefficients, mapping, mask, nodata),
+        samples: integer_samples(header.sample_type, values, mapping, mask, header.nodata),
         passes_decoded,
         complete,
         significance: None,
     })
+}
+
+/// The 5/3 inverse of `coefficients` shifted down by `shift`, in `i16`
+/// ([`wavelet::inverse_53_i16`]; the escaped coefficients and the values that do not fit
+/// are kept beside). Shifting the LL band shifts every output of the integer 5/3 by as
+/// much, exactly (each lifting step adds to one band the floor of a sum of the other
+/// band's values, which the shift leaves alone or shifts by as much, as in JPEG 2000's
+/// DC level shift), so the samples are those of [`wavelet::inverse_53`] minus `shift`.
+/// A sample that still does not fit is saturated, as its type's range clamps it later.
+/// `None` when too many values do not fit.
+fn narrow_inverse_53<const ESCAPES: bool>(
+    mut coefficients: Narrow<ESCAPES>,
+    width: usize,
+    height: usize,
+    levels: u32,
+    shift: i32,
+) -> Option<Vec<i16>> {
+    let ll = (region_side(width, levels), region_side(height, levels));
+    for i in (0..ll.1).flat_map(|y| (y * width..).take(ll.0)) {
+        coefficients.set(i, coefficients.at(i).wrapping_sub(shift));
+    }
+    let (mut values, mut spilled) = coefficients.into_parts();
+    if !wavelet::inverse_53_i16(&mut values, &mut spilled, width, height, levels) {
+        return None;
+    }
+    for (i, v) in spilled {
+        values[i] = v.clamp(i16::MIN.into(), i16::MAX.into()) as i16;
+    }
+    Some(values)
+}
+
+/// Side of the LL region after `levels` levels of a side of `n` samples.
+fn region_side(n: usize, levels: u32) -> usize {
+    (0..levels).fold(n, |s, _| s.div_ceil(2))
 }
 
 /// The range decoder over the stream's payload, read in place.

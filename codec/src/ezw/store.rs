@@ -1,0 +1,285 @@
+//! Where a decoder keeps the coefficients it knows: `i32`, or `i16` with the few that do
+//! not fit escaped to a side table ([`Narrow`]), half the memory for 16-bit rasters.
+
+use std::collections::BTreeMap;
+
+use crate::wavelet::max_spilled;
+
+/// The known coefficients as the scans read them.
+pub trait Known {
+    /// The known value of coefficient `i`.
+    fn at(&self, i: usize) -> i32;
+
+    /// The known magnitudes of the 8 neighbours of coefficient `i`, inside an array
+    /// `w` wide, the horizontal and vertical ones counted twice.
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        neighbour_magnitudes(self, i, w)
+    }
+}
+
+/// [`Known::interior_sum`] read one coefficient at a time.
+#[inline(always)]
+fn neighbour_magnitudes<K: Known + ?Sized>(known: &K, i: usize, w: usize) -> u64 {
+    let m = |j: usize| u64::from(known.at(j).unsigned_abs());
+    2 * (m(i - 1) + m(i + 1) + m(i - w) + m(i + w))
+        + m(i - w - 1)
+        + m(i - w + 1)
+        + m(i + w - 1)
+        + m(i + w + 1)
+}
+
+impl Known for [i32] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        self[i]
+    }
+}
+
+impl Known for Vec<i32> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        self[i]
+    }
+}
+
+impl Known for [i16] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        i32::from(self[i])
+    }
+}
+
+/// A decoder's coefficient store.
+pub trait Store: Known + Send + Sized {
+    /// The coefficients as the scans of the passes up to [`super::SATURATED_PLANE`] may
+    /// read them: any value of magnitude 32767 or more may read as one of 32767 or
+    /// 32768 with its sign.
+    type Saturated: Known + ?Sized;
+    /// `n` coefficients, all 0.
+    fn zeroed(n: usize) -> Self;
+    /// Stores `v` as coefficient `i`.
+    fn set(&mut self, i: usize, v: i32);
+    /// Adds 2^`p` to the magnitude of coefficient `i` (not 0).
+    #[inline(always)]
+    fn grow(&mut self, i: usize, p: u32) {
+        let v = self.at(i);
+        self.set(i, if v < 0 { v - (1 << p) } else { v + (1 << p) });
+    }
+    /// The store as [`Store::Saturated`].
+    fn saturated(&self) -> &Self::Saturated;
+    /// Whether the store holds more than it was meant to (the decode gives up).
+    fn overflowed(&self) -> bool;
+}
+
+impl Store for Vec<i32> {
+    type Saturated = Self;
+    fn zeroed(n: usize) -> Self {
+        vec![0; n]
+    }
+    #[inline(always)]
+    fn set(&mut self, i: usize, v: i32) {
+        self[i] = v;
+    }
+    #[inline(always)]
+    fn saturated(&self) -> &Self {
+        self
+    }
+    fn overflowed(&self) -> bool {
+        false
+    }
+}
+
+/// The `i16` slot of an escaped coefficient: its sign's extreme, so that read as it is
+/// the slot has the coefficient's sign and a magnitude of 32767 or 32768.
+const fn escape_slot(v: i32) -> i16 {
+    if v < 0 {
+        i16::MIN
+    } else {
+        i16::MAX
+    }
+}
+
+/// Whether `v` is an escaped coefficient's slot (with `ESCAPES`).
+#[inline(always)]
+fn is_escape(v: i16) -> bool {
+    (v as u16).wrapping_sub(i16::MAX as u16) <= 1
+}
+
+/// Coefficients as `i16`. With `ESCAPES`, each one outside `−32767 ..= 32766` is escaped:
+/// its slot holds `escape_slot` and its value is in a side table, which may hold about
+/// one coefficient in 64 (the coarse bands of a raster spanning the whole 16-bit range;
+/// [`max_spilled`]); past that the store has [`Store::overflowed`]. Without, reading a
+/// coefficient costs no test, and one that does not fit overflows the store.
+#[derive(Debug, Clone, Default)]
+pub struct Narrow<const ESCAPES: bool = true> {
+    values: Vec<i16>,
+    wide: BTreeMap<usize, i32>,
+    /// Whether a value did not fit (without `ESCAPES`).
+    outgrown: bool,
+}
+
+impl<const ESCAPES: bool> Known for Narrow<ESCAPES> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        let v = self.values[i];
+        if ESCAPES && is_escape(v) {
+            self.escaped(i)
+        } else {
+            i32::from(v)
+        }
+    }
+
+    /// One test for an escape among the 8 neighbours rather than 8.
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        let v = &self.values;
+        let (up, down) = (&v[i - w - 1..i - w + 2], &v[i + w - 1..i + w + 2]);
+        let (left, right) = (v[i - 1], v[i + 1]);
+        let escaped = |row: &[i16]| row.iter().fold(false, |e, &x| e | is_escape(x));
+        if ESCAPES && (escaped(up) | escaped(down) | is_escape(left) | is_escape(right)) {
+            return self.escaped_sum(i, w);
+        }
+        let m = |x: i16| u64::from(x.unsigned_abs());
+        2 * (m(left) + m(right) + m(up[1]) + m(down[1]))
+            + m(up[0])
+            + m(up[2])
+            + m(down[0])
+            + m(down[2])
+    }
+}
+
+impl<const ESCAPES: bool> Store for Narrow<ESCAPES> {
+    type Saturated = [i16];
+    fn zeroed(n: usize) -> Self {
+        Narrow {
+            values: vec![0; n],
+            wide: BTreeMap::new(),
+            outgrown: false,
+        }
+    }
+    #[inline(always)]
+    fn set(&mut self, i: usize, v: i32) {
+        match i16::try_from(v) {
+            Ok(narrow) if !ESCAPES => self.values[i] = narrow,
+            Ok(narrow) if !is_escape(narrow) && !is_escape(self.values[i]) => {
+                self.values[i] = narrow
+            }
+            _ if !ESCAPES => self.outgrown = true,
+            _ => self.set_escaped(i, v),
+        }
+    }
+    #[inline(always)]
+    fn saturated(&self) -> &[i16] {
+        &self.values
+    }
+    fn overflowed(&self) -> bool {
+        self.outgrown || self.wide.len() > max_spilled(self.values.len())
+    }
+}
+
+impl<const ESCAPES: bool> Narrow<ESCAPES> {
+    /// The value of escaped coefficient `i`.
+    #[cold]
+    #[inline(never)]
+    fn escaped(&self, i: usize) -> i32 {
+        let slot = self.values[i];
+        self.wide.get(&i).copied().unwrap_or(i32::from(slot))
+    }
+
+    /// [`Known::interior_sum`] with an escaped neighbour.
+    #[cold]
+    #[inline(never)]
+    fn escaped_sum(&self, i: usize, w: usize) -> u64 {
+        neighbour_magnitudes(self, i, w)
+    }
+
+    /// [`Store::set`] where the old or the new value is escaped.
+    #[cold]
+    #[inline(never)]
+    fn set_escaped(&mut self, i: usize, v: i32) {
+        match i16::try_from(v) {
+            Ok(narrow) if !is_escape(narrow) => {
+                self.wide.remove(&i);
+                self.values[i] = narrow;
+            }
+            _ => {
+                self.wide.insert(i, v);
+                self.values[i] = escape_slot(v);
+            }
+        }
+    }
+
+    /// The escaped coefficients' indices, in increasing order.
+    #[cfg(test)]
+    fn escaped_indices(&self) -> impl Iterator<Item = usize> + '_ {
+        self.wide.keys().copied()
+    }
+
+    /// The `i16` values and the escaped ones by index.
+    pub(crate) fn into_parts(self) -> (Vec<i16>, BTreeMap<usize, i32>) {
+        (self.values, self.wide)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn narrow_store_keeps_every_value_and_escapes_only_the_wide_ones() {
+        let mut store = Narrow::<true>::zeroed(8);
+        let values = [0, 32767, -32767, -32768, 32768, -70000, 5, i32::MIN];
+        for (i, &v) in values.iter().enumerate() {
+            store.set(i, v);
+        }
+        for (i, &v) in values.iter().enumerate() {
+            assert_eq!(store.at(i), v, "coefficient {i}");
+        }
+        // 32767 and −32768 are escaped too; saturated, an escaped coefficient reads
+        // as its sign's extreme.
+        assert_eq!(store.escaped_indices().collect::<Vec<_>>(), [1, 3, 4, 5, 7]);
+        let saturated: Vec<i32> = (0..8).map(|i| store.saturated().at(i)).collect();
+        assert_eq!(
+            saturated,
+            [0, 32767, -32767, -32768, 32767, -32768, 5, -32768]
+        );
+        // Narrowing back frees the entry; widening a narrow one adds one.
+        store.set(4, 12);
+        store.set(5, -32766);
+        store.set(6, 40000);
+        store.grow(6, 3);
+        store.grow(5, 1);
+        assert_eq!((store.at(4), store.at(5), store.at(6)), (12, -32768, 40008));
+        assert_eq!(store.escaped_indices().collect::<Vec<_>>(), [1, 3, 5, 6, 7]);
+        assert!(!store.overflowed());
+        for (i, v) in [(1, 1), (2, 2), (3, 3), (5, -32766), (6, 6), (7, 7)] {
+            store.set(i, v);
+        }
+        let (values, wide) = store.into_parts();
+        assert_eq!(values, [0, 1, 2, 3, 12, -32766, 6, 7]);
+        assert!(wide.is_empty());
+    }
+
+    #[test]
+    fn narrow_store_overflows_past_its_table() {
+        let mut store = Narrow::<true>::zeroed(64 * 10);
+        for i in 0..74 {
+            store.set(i, 1 << 20);
+        }
+        assert!(!store.overflowed());
+        store.set(74, -(1 << 20));
+        assert!(store.overflowed());
+    }
+
+    #[test]
+    fn narrow_store_without_escapes_overflows_at_once() {
+        let mut store = Narrow::<false>::zeroed(4);
+        store.set(0, -32768);
+        store.set(1, 32767);
+        assert!(!store.overflowed());
+        assert_eq!((store.at(0), store.at(1)), (-32768, 32767));
+        store.set(2, 32768);
+        assert!(store.overflowed());
+    }
+}
