@@ -322,6 +322,15 @@ impl<'a> ViewTerrain<'a> {
         }
     }
 
+    /// Asks the processor to bring the summary of node `(level, i, j)` (`level ≥ 1`) into
+    /// the cache ahead of its evaluation (a hint: nothing else changes).
+    #[inline]
+    pub fn prefetch_node(&self, level: u32, i: usize, j: usize) {
+        if let Some(summary) = self.nodes[level as usize - 1].get(z_order(i, j)) {
+            prefetch_read(summary);
+        }
+    }
+
     /// Whether node `(level, i, j)` splits under `view` and `rule` (nodata aside).
     #[inline]
     pub fn splits(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> bool {
