@@ -176,9 +176,9 @@ impl MorphScratch {
             blends[k] = if f64::from(settled[k]) > self.travelled || terrain.is_void(m, i, j) {
                 1.0
             } else {
-                let node = terrain.evaluate(view, rule, m, i, j);
-                let b = blend_of_ratio(node.ratio);
+                let b = blend_of_ratio(terrain.ratio(view, rule, m, i, j));
                 if b >= 1.0 {
+                    let node = terrain.evaluate(view, rule, m, i, j);
                     settled[k] = round_down(after(self.travelled, stays_above(rule, node, 2.0)));
                 }
                 b as f32
