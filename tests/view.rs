@@ -14,6 +14,7 @@ use wavemesh::view::checks::{count_cracks, max_jump, Surface};
 use wavemesh::view::incremental::Incremental;
 use wavemesh::view::morph::{morph, MorphScratch};
 use wavemesh::view::selection::{Rule, ViewTerrain};
+use wavemesh_codec::significance::nodes_along;
 use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, Samples};
 
 /// A rough terrain of `w × h` heights from a seed, with optional voids.
@@ -153,6 +154,32 @@ proptest! {
             let fresh = morph(&terrain, &view, rule, &tree, &mesh, &mut MorphScratch::default());
             let bits = |z: &[f64]| z.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
             prop_assert!(bits(&morphed) == bits(&fresh), "frame {}: kept morph differs", f);
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The morph's lean ratio is [`ViewTerrain::evaluate`]'s, bit for bit, for every node
+    /// of every level, in view, partly out of it and out of it.
+    #[test]
+    fn the_lean_ratio_equals_the_evaluation(
+        w in 9usize..70, h in 9usize..70, seed in any::<u64>(), voids in any::<bool>(),
+        height in 5.0f64..80.0, turn in -2.0f64..2.0, tau in 0.3f64..4.0, t in -0.5f64..1.5,
+    ) {
+        let decoded = decode_with_map(&terrain(w, h, seed, voids));
+        let terrain = decoded.terrain();
+        let view = flight(w, h, t, height, turn);
+        let rule = Rule::ScreenSpace { tau };
+        for m in 1..=terrain.levels() {
+            for j in 0..nodes_along(h, m) {
+                for i in 0..nodes_along(w, m) {
+                    let lean = terrain.ratio(&view, rule, m, i, j);
+                    let full = terrain.evaluate(&view, rule, m, i, j).ratio;
+                    prop_assert_eq!(lean.to_bits(), full.to_bits(), "node {} {} {}", m, i, j);
+                }
+            }
         }
     }
 }

@@ -34,6 +34,9 @@ use crate::mesh::cells::CellTree;
 use crate::mesh::pyramid::{node_bounds, Diagonal};
 use crate::mesh::GridMesh;
 
+/// How many split nodes ahead of its evaluation a node's summary is prefetched.
+const PREFETCH_AHEAD: usize = 8;
+
 /// What morphing keeps from frame to frame, for one terrain and rule (it starts again by
 /// itself when either changes, or the projection does): the morphed height of every
 /// sample, so a vertex keeps its place whatever the others do, and per node how far the
@@ -52,6 +55,8 @@ pub struct MorphScratch {
     settled: Vec<Vec<f32>>,
     /// Camera motion accumulated since the state started (see [`camera_motion`]).
     travelled: f64,
+    /// The split nodes of the level being morphed, `(i, j)` row by row.
+    split: Vec<(u32, u32)>,
     /// The last frame's view, and what the state belongs to.
     last: Option<View>,
     owner: Option<Owner>,
@@ -82,6 +87,9 @@ pub fn morph(
 ) -> Vec<f64> {
     scratch.advance(terrain, view, rule, tree);
     for m in (1..=terrain.levels()).rev() {
+        scratch.split.clear();
+        let listed = tree.split_nodes(m).map(|(i, j)| (i as u32, j as u32));
+        scratch.split.extend(listed);
         scratch.level_blends(terrain, view, rule, tree, m);
         scratch.level_vertices(terrain, tree, m);
     }
@@ -99,6 +107,7 @@ impl MorphScratch {
                 + v.capacity() * std::mem::size_of::<Vec<f32>>()
         };
         self.samples.capacity() * std::mem::size_of::<f64>()
+            + self.split.capacity() * std::mem::size_of::<(u32, u32)>()
             + nested(&self.blends)
             + nested(&self.settled)
     }
@@ -142,7 +151,9 @@ impl MorphScratch {
     }
 
     /// The blend factor of every split node of level `m` (1 for void ones, and for those
-    /// still settled), evaluating the others and settling those at blend 1.
+    /// still settled), evaluating the others and settling those at blend 1. The nodes'
+    /// summaries are stored in Z order and read here row by row, so each is prefetched
+    /// [`PREFETCH_AHEAD`] nodes before its evaluation.
     fn level_blends(
         &mut self,
         terrain: &ViewTerrain<'_>,
@@ -156,14 +167,18 @@ impl MorphScratch {
             &mut self.blends[m as usize - 1],
             &mut self.settled[m as usize - 1],
         );
-        for (i, j) in tree.split_nodes(m) {
+        for (n, &(i, j)) in self.split.iter().enumerate() {
+            if let Some(&(pi, pj)) = self.split.get(n + PREFETCH_AHEAD) {
+                terrain.prefetch_node(m, pi as usize, pj as usize);
+            }
+            let (i, j) = (i as usize, j as usize);
             let k = j * nw + i;
             blends[k] = if f64::from(settled[k]) > self.travelled || terrain.is_void(m, i, j) {
                 1.0
             } else {
-                let node = terrain.evaluate(view, rule, m, i, j);
-                let b = blend_of_ratio(node.ratio);
+                let b = blend_of_ratio(terrain.ratio(view, rule, m, i, j));
                 if b >= 1.0 {
+                    let node = terrain.evaluate(view, rule, m, i, j);
                     settled[k] = round_down(after(self.travelled, stays_above(rule, node, 2.0)));
                 }
                 b as f32
@@ -194,7 +209,8 @@ impl MorphScratch {
             truth: heights.values,
             width: w,
         };
-        for (i, j) in tree.split_nodes(m) {
+        for &(i, j) in &self.split {
+            let (i, j) = (i as usize, j as usize);
             let (x0, y0, x1, y1) = node_bounds(w, h, m, i, j);
             let (xm, ym) = (x0 + half, y0 + half);
             let own = f64::from(blends[j * nw + i]);

@@ -232,13 +232,19 @@ impl<'a> ViewTerrain<'a> {
     /// without levels, then flat at height 0).
     #[inline]
     pub fn node_box(&self, level: u32, i: usize, j: usize) -> (DVec3, DVec3) {
-        let (x0, y0, x1, y1) = node_bounds(self.heights.width, self.heights.height, level, i, j);
-        let (low, high) = if level == 0 {
-            (0.0, 0.0)
+        let summary = if level == 0 {
+            NodeSummary::default()
         } else {
-            let s = self.nodes[level as usize - 1][z_order(i, j)];
-            (f64::from(s.low), f64::from(s.high))
+            self.nodes[level as usize - 1][z_order(i, j)]
         };
+        self.box_of(level, i, j, summary)
+    }
+
+    /// World bounding box of node `(level, i, j)` whose summary is `summary`.
+    #[inline]
+    fn box_of(&self, level: u32, i: usize, j: usize, summary: NodeSummary) -> (DVec3, DVec3) {
+        let (x0, y0, x1, y1) = node_bounds(self.heights.width, self.heights.height, level, i, j);
+        let (low, high) = (f64::from(summary.low), f64::from(summary.high));
         let [origin, col, row] = self.affine;
         let (a, b) = (origin + col * x0 as f64, origin + col * x1 as f64);
         let (c, d) = (row * y0 as f64, row * y1 as f64);
@@ -285,6 +291,39 @@ impl<'a> ViewTerrain<'a> {
         node
     }
 
+    /// [`ViewTerrain::evaluate`]'s ratio alone, bit for bit, at less cost: with the
+    /// screen-space rule the half-diagonal is only computed for boxes reaching outside
+    /// the frustum, and the reach takes one square root (`max(√h², ½√f²) = √max(h², f²/4)`:
+    /// the square root is monotone and correctly rounded, and halving is exact).
+    #[inline]
+    pub fn ratio(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> f64 {
+        let Rule::ScreenSpace { tau } = rule else {
+            return self.evaluate(view, rule, level, i, j).ratio;
+        };
+        let summary = self.nodes[level as usize - 1][z_order(i, j)];
+        let error = f64::from(summary.error);
+        let (lo, hi) = self.box_of(level, i, j, summary);
+        let clearance = view.frustum_clearance(lo, hi);
+        let frustum = if clearance >= 0.0 {
+            1.0
+        } else {
+            let margin = 0.5 * lo.distance(hi);
+            (1.0 + clearance.min(0.0) / margin.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0)
+        };
+        if frustum > 0.0 && error * view.pixels_per_unit / tau > 0.0 {
+            let eye = view.camera.eye;
+            let far = (eye - lo).abs().max((hi - eye).abs());
+            let horizontal = far.x * far.x + far.y * far.y;
+            let farthest = horizontal + far.z * far.z;
+            let quarter = MIN_FORESHORTENING * MIN_FORESHORTENING;
+            let reach = horizontal.max(quarter * farthest).sqrt();
+            let depth = view.seen_depth(lo, hi, box_distance(eye, lo, hi));
+            frustum * view.vertical_error_pixels(error, reach, depth) / tau
+        } else {
+            0.0
+        }
+    }
+
     /// `2^(plane − 1) / T_i` for node `(level, i, j)`, 0 when nothing in its subtree is
     /// significant.
     fn area_ratio(&self, view: &View, a: f64, b: f64, level: u32, i: usize, j: usize) -> f64 {
@@ -319,6 +358,15 @@ impl<'a> ViewTerrain<'a> {
             {
                 prefetch_read(summary);
             }
+        }
+    }
+
+    /// Asks the processor to bring the summary of node `(level, i, j)` (`level ≥ 1`) into
+    /// the cache ahead of its evaluation (a hint: nothing else changes).
+    #[inline]
+    pub fn prefetch_node(&self, level: u32, i: usize, j: usize) {
+        if let Some(summary) = self.nodes[level as usize - 1].get(z_order(i, j)) {
+            prefetch_read(summary);
         }
     }
 
