@@ -325,3 +325,35 @@ fn memory_does_not_grow_with_the_raster_width() {
         );
     }
 }
+
+#[test]
+fn views_of_a_tiled_file_say_they_need_one_stream() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 300, 200);
+    let ezw = dir.path().join("v.ezw");
+    json(&["encode", s(&tif), "-o", s(&ezw), "--tile", "128", "--json"]);
+    let view = [
+        "view",
+        s(&ezw),
+        "--camera",
+        "150,-200,3000",
+        "--look",
+        "150,100,0",
+    ];
+    let glb = dir.path().join("v.glb");
+    for args in [
+        [&view[..], &["-o", s(&glb)]].concat(),
+        vec!["flythrough", s(&ezw), "--orbit", "--frames", "2"],
+    ] {
+        let out = wavemesh(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{args:?}: {stderr}");
+        assert!(
+            stderr.trim().ends_with(
+                "views need a single-stream file: this one is tiled (encode with --tile 0)"
+            ) && stderr.lines().count() == 1,
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!glb.exists());
+}

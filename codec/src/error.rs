@@ -55,8 +55,8 @@ pub enum CodecError {
         /// File offset where the damage starts.
         offset: u64,
     },
-    /// The encoder was given parameters it cannot honour.
-    #[error("invalid encoder parameters: {0}")]
+    /// The encoder or decoder was given parameters it cannot honour.
+    #[error("invalid parameters: {0}")]
     InvalidParameters(String),
     /// Reading the bytes of a stream failed (a file or a remote source behind
     /// [`crate::tiles::ByteSource`]).

@@ -19,7 +19,8 @@ use wavemesh::view::morph::{morph, MorphScratch};
 use wavemesh::view::render::{top_down, write_png};
 use wavemesh::view::selection::{Rule, ViewTerrain};
 use wavemesh::view::ViewError;
-use wavemesh_codec::{decode, DecodeOptions, Decoded};
+use wavemesh_codec::tiles::TiledLayout;
+use wavemesh_codec::{decode, CodecError, DecodeOptions, Decoded};
 
 use super::coding::SCHEMA_VERSION;
 use super::{CliError, LimitArgs};
@@ -188,6 +189,14 @@ impl ViewOptions {
     }
 }
 
+/// Whether `data` is a tiled `.ezw` file (its header and index read).
+fn is_tiled(data: &[u8]) -> bool {
+    matches!(
+        TiledLayout::read(&mut &data[..], data.len() as u64),
+        Ok(Some(_))
+    )
+}
+
 /// A decoded stream with its map, ready for views.
 struct Loaded {
     decoded: Decoded,
@@ -204,8 +213,13 @@ impl Loaded {
         let decode_options = DecodeOptions::default()
             .with_significance_map(true)
             .with_limits(options.limit_args.limits());
-        let decoded =
-            decode(&data, &decode_options).map_err(|e| CliError::Stream(input.to_path_buf(), e))?;
+        let decoded = decode(&data, &decode_options).map_err(|e| match e {
+            CodecError::InvalidParameters(_) if is_tiled(&data) => CliError::Input(
+                input.to_path_buf(),
+                "views need a single-stream file: this one is tiled (encode with --tile 0)".into(),
+            ),
+            e => CliError::Stream(input.to_path_buf(), e),
+        })?;
         if !has_valid_cell(&decoded.raster) {
             return Err(CliError::Input(
                 input.to_path_buf(),
