@@ -8,7 +8,7 @@ use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::Path;
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::mpsc::{sync_channel, Receiver};
 use std::sync::Arc;
 
 use thiserror::Error;
@@ -126,16 +126,19 @@ fn code_blocks_in_turn(
     take: &mut dyn FnMut(EncodedTile) -> io::Result<()>,
     block_done: &mut dyn FnMut(&Block),
 ) -> Result<(), TiledEncodeError> {
-    let mut previous: Option<(&Block, Raster)> = None;
-    for block in blocks {
-        let band = read_block(bands, grid, block, previous.as_ref().map(|(b, r)| (*b, r)))?;
-        for tile in encode_block(&band, grid, block.0, block.1.clone(), options)? {
-            take(tile)?;
-        }
-        block_done(block);
-        previous = Some((block, band));
-    }
-    Ok(())
+    let mut outcome = Ok(());
+    read_blocks(bands, grid, blocks, &mut |b, band| {
+        let block = &blocks[b];
+        outcome = band.map_err(TiledEncodeError::from).and_then(|band| {
+            for tile in encode_block(&band, grid, block.0, block.1.clone(), options)? {
+                take(tile)?;
+            }
+            block_done(block);
+            Ok(())
+        });
+        outcome.is_ok()
+    });
+    outcome
 }
 
 /// [`code_blocks_in_turn`] on `threads` threads (0: one per core): a reader thread reads
@@ -157,7 +160,9 @@ fn code_blocks_ahead(
     let samples = (grid.width * grid.height) as u64;
     std::thread::scope(|scope| {
         let (send, read) = sync_channel(0);
-        scope.spawn(move || read_blocks(bands, grid, blocks, send));
+        scope.spawn(move || {
+            read_blocks(bands, grid, blocks, &mut |_, band| send.send(band).is_ok())
+        });
         let mut running: VecDeque<(usize, Receiver<Result<EncodedTile, CodecError>>)> =
             VecDeque::new();
         let mut collect = |running: &mut VecDeque<_>| -> Result<(), TiledEncodeError> {
@@ -194,20 +199,20 @@ fn code_blocks_ahead(
     })
 }
 
-/// Reads `blocks` in order into `send` (stopping at the first error, or when the
-/// receiver is gone), each block's shared rows taken from the one before.
+/// Reads `blocks` in order, handing each (by index) to `deliver`, each block's shared
+/// rows taken from the one before; stops at the first error or when `deliver` says no.
 fn read_blocks(
     bands: &mut RowBands,
     grid: &TileGrid,
     blocks: &[Block],
-    send: SyncSender<Result<Arc<Raster>, DemError>>,
+    deliver: &mut dyn FnMut(usize, Result<Arc<Raster>, DemError>) -> bool,
 ) {
     let mut previous: Option<(&Block, Arc<Raster>)> = None;
-    for block in blocks {
-        let above = previous.as_ref().map(|(b, r)| (*b, &**r));
+    for (b, block) in blocks.iter().enumerate() {
+        let above = previous.as_ref().map(|(p, band)| (*p, &**band));
         let band = read_block(bands, grid, block, above).map(Arc::new);
         let next = band.as_ref().ok().map(|band| (block, Arc::clone(band)));
-        if send.send(band).is_err() || next.is_none() {
+        if !deliver(b, band) || next.is_none() {
             return;
         }
         previous = next;

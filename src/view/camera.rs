@@ -289,13 +289,7 @@ mod tests {
         )
         .unwrap()
         .view();
-        let mut seed = 12345u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::view::unit_random(12345);
         let (mut seen, mut tightest) = (0, 0.0f64);
         for _ in 0..20000 {
             let p = DVec3::new(next() * 120.0 - 20.0, next() * 120.0 - 60.0, next() * 30.0);

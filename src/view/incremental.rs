@@ -699,13 +699,7 @@ mod tests {
     /// by at most [`camera_motion`], and the bound is not loose for pure turns.
     #[test]
     fn camera_motion_bounds_depths_and_plane_distances() {
-        let mut seed = 99u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::view::unit_random(99);
         let (lo, hi) = (DVec3::new(0.0, 0.0, -50.0), DVec3::new(400.0, 300.0, 250.0));
         let extent = [0, 1, 2, 3, 4, 5, 6, 7]
             .map(|k| DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo));

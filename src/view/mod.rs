@@ -33,3 +33,15 @@ pub enum ViewError {
     #[error("cannot write the frame image: {0}")]
     Render(String),
 }
+
+/// Uniform numbers in [0, 1) from a fixed-seed linear congruential generator, for tests
+/// that walk random cameras.
+#[cfg(test)]
+fn unit_random(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
