@@ -52,7 +52,7 @@ mod training;
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
 use std::marker::PhantomData;
-pub use store::{Known, Narrow, Store};
+pub use store::{Known, Narrow, Scaled, Store};
 #[cfg(feature = "research")]
 pub use training::{tally_priors, PriorTally, PRIOR_WINDOW};
 
@@ -1079,11 +1079,11 @@ struct DecoderSide<'a, S, V> {
 }
 
 impl<'a, S: Store> DecoderSide<'a, S, Checked> {
-    /// The side of a decode of `n` coefficients reading `source`.
-    fn new(source: ArithmeticDecoder<'a>, n: usize) -> Self {
+    /// The side of a decode into `values` (all 0) reading `source`.
+    fn new(source: ArithmeticDecoder<'a>, values: S) -> Self {
         DecoderSide {
             source,
-            values: S::zeroed(n),
+            values,
             refined: None,
             view: PhantomData,
         }
@@ -1294,6 +1294,19 @@ impl<S: Store> Decoder<S> {
         top_plane: Option<u32>,
         max_passes: Option<u32>,
     ) -> Option<Decoder<S>> {
+        let values = S::zeroed(layout.len());
+        Decoder::try_run_into(values, layout, coder, source, (top_plane, max_passes))
+    }
+
+    /// As [`Decoder::try_run_from`], into `values` (as many coefficients as `layout`
+    /// has, all 0).
+    pub fn try_run_into(
+        values: S,
+        layout: &CoefficientLayout,
+        coder: Coder,
+        source: ArithmeticDecoder<'_>,
+        (top_plane, max_passes): (Option<u32>, Option<u32>),
+    ) -> Option<Decoder<S>> {
         let mut run = PassRun {
             layout,
             grid: FlagGrid::new(layout, coder),
@@ -1302,7 +1315,7 @@ impl<S: Store> Decoder<S> {
             passes_completed: 0,
             stop: None,
         };
-        let mut side = DecoderSide::<S, Checked>::new(source, layout.len());
+        let mut side = DecoderSide::<S, Checked>::new(source, values);
         let top = top_plane.map_or(-1, |t| t as i64);
         let saturated_top = top.min(i64::from(SATURATED_PLANE));
         // The passes above SATURATED_PLANE, then the others.
@@ -1342,16 +1355,8 @@ impl<S: Store> Decoder<S> {
     /// known of it; the others stay 0.
     fn map_significant(&mut self, f: impl Fn(i32, u32) -> i32) {
         let w = self.width;
-        let refined_band = self.stop.and_then(|s| s.refined).map(|r| {
-            let (x, y) = (r % w, r / w);
-            self.bands.iter().position(|(sub, _)| {
-                (sub.x0..sub.x0 + sub.width).contains(&x)
-                    && (sub.y0..sub.y0 + sub.height).contains(&y)
-            })
-        });
-        for b in 0..self.bands.len() {
-            let (sub, shift) = self.bands[b];
-            let planes = self.band_planes(b, shift, refined_band.flatten());
+        for (b, planes) in self.all_band_planes().into_iter().enumerate() {
+            let (sub, _) = self.bands[b];
             for y in 0..sub.height {
                 let start = (sub.y0 + y) * w + sub.x0;
                 for i in start..start + sub.width {
@@ -1363,6 +1368,28 @@ impl<S: Store> Decoder<S> {
                 }
             }
         }
+    }
+
+    /// The planes known of every band's significant coefficients, in band order.
+    fn all_band_planes(&self) -> Vec<BandPlanes> {
+        let w = self.width;
+        let refined_band = self.stop.and_then(|s| s.refined).and_then(|r| {
+            let (x, y) = (r % w, r / w);
+            self.bands.iter().position(|(sub, _)| {
+                (sub.x0..sub.x0 + sub.width).contains(&x)
+                    && (sub.y0..sub.y0 + sub.height).contains(&y)
+            })
+        });
+        (0..self.bands.len())
+            .map(|b| self.band_planes(b, self.bands[b].1, refined_band))
+            .collect()
+    }
+
+    /// The store and the 9/7 reconstruction of its values ([`RealValues`]), for an
+    /// inverse that reads the coefficients where they are.
+    pub fn into_real_parts(self) -> (S, RealValues) {
+        let planes = self.all_band_planes();
+        (self.values, RealValues { planes })
     }
 
     /// The planes known of band `b`'s significant coefficients (see [`BandPlanes`]);
@@ -1384,6 +1411,34 @@ impl<S: Store> Decoder<S> {
             Some((plane, refined_below))
         });
         BandPlanes { settled, partial }
+    }
+}
+
+/// The 9/7 reconstruction of a significant coefficient of known value `v` whose lowest
+/// plane known is `p`: mid-interval, in quantiser units.
+#[inline]
+fn real_value(v: i32, p: u32) -> f32 {
+    let magnitude = Midpoint::Real.value(v.unsigned_abs(), p);
+    (if v < 0 { -magnitude } else { magnitude }) as f32
+}
+
+/// The 9/7 reconstruction of a decode's coefficients one at a time, as
+/// [`Decoder::into_real_coefficients`] makes them all.
+#[derive(Debug, Clone)]
+pub struct RealValues {
+    planes: Vec<BandPlanes>,
+}
+
+impl RealValues {
+    /// The value of coefficient `i` of band `b` (in [`crate::wavelet::subbands`] order),
+    /// whose known value is `v`.
+    #[inline]
+    pub fn value(&self, b: usize, i: usize, v: i32) -> f32 {
+        if v == 0 {
+            0.0
+        } else {
+            real_value(v, self.planes[b].lowest(i, v.unsigned_abs()))
+        }
     }
 }
 
@@ -1430,10 +1485,7 @@ impl Decoder {
     /// in quantiser units, reusing the coefficient buffer.
     pub fn into_real_coefficients(mut self) -> Vec<f32> {
         // The f32 bits are made in place, then reinterpreted in place.
-        self.map_significant(|v, p| {
-            let magnitude = Midpoint::Real.value(v.unsigned_abs(), p);
-            (if v < 0 { -magnitude } else { magnitude } as f32).to_bits() as i32
-        });
+        self.map_significant(|v, p| real_value(v, p).to_bits() as i32);
         self.values
             .into_iter()
             .map(|bits| f32::from_bits(bits as u32))

@@ -25,7 +25,9 @@ mod samples;
 mod voids;
 
 pub(crate) use prepare::{prepare_53, prepare_97, Prepared, VoidCoefficients};
-pub(crate) use samples::{integer_samples, rescale_97, to_samples, whole_offset};
+pub(crate) use samples::{
+    integer_samples, rescale_97, sample_bits, samples_from_bits, to_samples, whole_offset,
+};
 pub(crate) use voids::fill_voids;
 
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.

@@ -32,10 +32,12 @@
 //! de-interleaved) into a scratch buffer where each lifting step is one flat, vectorisable
 //! loop over all lanes, then scattered back. Scratch memory is allocated once per call.
 
+mod in_place;
 mod support;
 
 use std::collections::BTreeMap;
 
+pub use in_place::inverse_97_i16;
 pub(crate) use support::zero_unreached;
 
 /// Which wavelet a stream uses.

@@ -222,6 +222,73 @@ impl<const ESCAPES: bool> Narrow<ESCAPES> {
     }
 }
 
+/// Coefficients as `i16` in units of 2^`shift`: every value known down to plane
+/// `shift` of magnitude below 2^(15 + `shift`), half the memory of `i32` for a 9/7
+/// stream decoded only through its top 15 planes. A value it cannot hold (a finer plane,
+/// a larger magnitude) overflows the store.
+#[derive(Debug, Clone, Default)]
+pub struct Scaled {
+    values: Vec<i16>,
+    shift: u32,
+    outgrown: bool,
+}
+
+impl Scaled {
+    /// The plane below which a stream whose first pass is `top_plane` is not held.
+    pub fn floor(top_plane: u32) -> u32 {
+        top_plane.saturating_sub(14)
+    }
+
+    /// `n` coefficients, all 0, in units of 2^`shift`.
+    pub fn with_shift(n: usize, shift: u32) -> Scaled {
+        Scaled {
+            values: vec![0; n],
+            shift,
+            outgrown: false,
+        }
+    }
+
+    /// The slots (each value over 2^shift) and the shift.
+    pub(crate) fn into_parts(self) -> (Vec<i16>, u32) {
+        (self.values, self.shift)
+    }
+}
+
+impl Known for Scaled {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        i32::from(self.values[i]) << self.shift
+    }
+
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        neighbour_magnitudes(&self.values[..], i, w) << self.shift
+    }
+}
+
+impl Store for Scaled {
+    type Saturated = Self;
+    /// In units of 1: [`Scaled::with_shift`] gives others.
+    fn zeroed(n: usize) -> Self {
+        Scaled::with_shift(n, 0)
+    }
+    #[inline(always)]
+    fn set(&mut self, i: usize, v: i32) {
+        let slot = v >> self.shift;
+        match i16::try_from(slot) {
+            Ok(slot) if i32::from(slot) << self.shift == v => self.values[i] = slot,
+            _ => self.outgrown = true,
+        }
+    }
+    #[inline(always)]
+    fn saturated(&self) -> &Self {
+        self
+    }
+    fn overflowed(&self) -> bool {
+        self.outgrown
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -281,5 +348,27 @@ mod tests {
         assert_eq!((store.at(0), store.at(1)), (-32768, 32767));
         store.set(2, 32768);
         assert!(store.overflowed());
+    }
+
+    #[test]
+    fn scaled_store_holds_its_planes_and_overflows_outside_them() {
+        // A 3×3 array: the left and right neighbours of the middle one.
+        let mut store = Scaled::with_shift(9, 15);
+        store.set(3, -(32767 << 15));
+        store.set(5, 3 << 20);
+        store.grow(5, 15);
+        assert_eq!(
+            (store.at(3), store.at(5)),
+            (-(32767 << 15), (3 << 20) + (1 << 15))
+        );
+        assert_eq!(store.interior_sum(4, 3), (2 * 32767 + 2 * 97) << 15);
+        assert!(!store.overflowed());
+        store.set(2, 1 << 14);
+        assert!(store.overflowed());
+        let mut store = Scaled::with_shift(2, 15);
+        store.set(0, 1 << 30);
+        assert!(store.overflowed());
+        assert_eq!(Scaled::floor(29), 15);
+        assert_eq!(Scaled::floor(9), 0);
     }
 }

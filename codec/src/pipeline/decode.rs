@@ -5,10 +5,13 @@ use crate::container::{physical_offset, Header, StreamSections, CHUNK};
 use crate::corrections::apply_corrections;
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
-use crate::ezw::{CoefficientLayout, Decoder, Known, Narrow, Store};
+use crate::ezw::{CoefficientLayout, Decoder, Known, Narrow, Scaled, Store};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{integer_samples, rescale_97, to_samples, whole_offset, ValueMapping};
+use crate::quantize::{
+    integer_samples, rescale_97, sample_bits, samples_from_bits, to_samples, whole_offset,
+    ValueMapping,
+};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::decode_residuals;
 use crate::significance::SignificanceMap;
@@ -324,6 +327,15 @@ fn reconstruction(
             return done;
         }
     }
+    let scaled = header.sample_type.bytes() <= 2
+        && header.wavelet == Wavelet::Cdf97
+        && !options.significance_map;
+    if scaled {
+        let payload = (sections, payload_complete);
+        if let Some(done) = scaled_reconstruction(&layout, header, payload, options, mask) {
+            return done;
+        }
+    }
     let decoder = Decoder::run_from(
         &layout,
         header.coder,
@@ -367,6 +379,87 @@ fn narrow_reconstruction(
     let decoder =
         Decoder::<Narrow<true>>::try_run_from(layout, coder, source(), top_plane, max_passes)?;
     narrow_samples(decoder, header, mask)
+}
+
+/// The 9/7 decode of a stream of 1- or 2-byte integer samples whose decode stays above
+/// plane [`Scaled::floor`] (its ladder says so): the coefficients in `i16`
+/// ([`Scaled`]), dequantised as the inverse reads them and the samples written over them
+/// ([`wavelet::inverse_97_i16`]), about 1.6 times the samples' bytes where the `i32`
+/// decode holds 2 and more. The samples are those of [`reconstruct`]. `None` for that
+/// decode.
+fn scaled_reconstruction(
+    layout: &CoefficientLayout,
+    header: &Header,
+    (sections, payload_complete): (&StreamSections, bool),
+    options: &DecodeOptions,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Option<Reconstruction> {
+    let top = header.top_plane.map(u32::from)?;
+    let floor = Scaled::floor(top);
+    if !stays_above(
+        header,
+        sections.payload_check.data_len as u64,
+        options,
+        floor,
+    ) {
+        return None;
+    }
+    let values = Scaled::with_shift(layout.len(), floor);
+    let source = payload_source(sections, payload_complete);
+    let passes = (Some(top), options.max_passes);
+    let decoder = Decoder::try_run_into(values, layout, header.coder, source, passes)?;
+    let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
+    let (store, real) = decoder.into_real_parts();
+    let (mut slots, shift) = store.into_parts();
+    let step = header.coefficient_step;
+    let scales: Vec<f32> = header
+        .bands
+        .iter()
+        .map(|&(_, s)| (step / s) as f32)
+        .collect();
+    let (mapping, sample_type) = (header.mapping, header.sample_type);
+    let size = (
+        header.width as usize,
+        header.height as usize,
+        header.levels as u32,
+    );
+    wavelet::inverse_97_i16(
+        &mut slots,
+        size,
+        |b, start, run, out| {
+            for (k, (o, &slot)) in out.iter_mut().zip(run).enumerate() {
+                *o = real.value(b, start + k, i32::from(slot) << shift) * scales[b];
+            }
+        },
+        |x| sample_bits(sample_type, mapping.value(x as f64)),
+    );
+    Some(Reconstruction {
+        samples: samples_from_bits(sample_type, slots, mask, header.nodata),
+        passes_decoded,
+        complete,
+        significance: None,
+    })
+}
+
+/// Whether a decode of `header`'s stream with `available` payload bytes reads no plane
+/// below `floor`: by the ladder, the passes held whole and the one begun after them
+/// (false without a ladder, as in a file cut short).
+fn stays_above(header: &Header, available: u64, options: &DecodeOptions, floor: u32) -> bool {
+    let Some(top) = header.top_plane.map(u32::from) else {
+        return false;
+    };
+    if header.passes.is_empty() {
+        return floor == 0;
+    }
+    let whole = header
+        .passes
+        .iter()
+        .take_while(|p| p.end_byte <= available)
+        .count() as u32;
+    let read = (whole + 1)
+        .min(top + 1)
+        .min(options.max_passes.unwrap_or(u32::MAX));
+    top + 1 - read >= floor
 }
 
 /// The samples of a [`narrow_reconstruction`]'s decode.
@@ -573,6 +666,87 @@ fn apply_residual_section(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pipeline::{encode, EncodeOptions};
+
+    /// A single-stream 9/7 file of smooth terrain in `sample_type`, `width × height`,
+    /// cut at `bytes` (the whole stream when `None`).
+    fn file_97(
+        sample_type: SampleType,
+        (width, height): (usize, usize),
+        bytes: Option<u64>,
+    ) -> Vec<u8> {
+        let values: Vec<f64> = (0..width * height)
+            .map(|i| {
+                let (x, y) = ((i % width) as f64, (i / width) as f64);
+                120.0 + 100.0 * (x * 0.11).sin() * (y * 0.07).cos() + 9.0 * (x * 1.3 + y).sin()
+            })
+            .collect();
+        let raster = Raster::new(width, height, Samples::from_f64(sample_type, &values)).unwrap();
+        let mut options = EncodeOptions::budget(bytes.unwrap_or(u64::MAX));
+        options.budget_bytes = bytes;
+        options.tile_size = None;
+        encode(&raster, &options).unwrap().bytes
+    }
+
+    /// The samples of `data` by the `i32` decode and by [`reconstruction`], and whether
+    /// the latter may take the `i16` one ([`stays_above`]).
+    fn both_decodes(data: &[u8], options: &DecodeOptions) -> (Samples, Samples, bool) {
+        let data = &data[..options.max_bytes.map_or(data.len(), |b| b as usize)];
+        let (header, header_len) = Header::parse(data).unwrap();
+        let sections = StreamSections::read(data, &header, header_len, options.max_bytes).unwrap();
+        let complete = sections.payload_check.complete && !header.payload_truncated;
+        let mask = sections.mask.as_ref().map(Mask::as_bitslice);
+        let (w, h, levels) = (
+            header.width as usize,
+            header.height as usize,
+            header.levels as u32,
+        );
+        let subbands = wavelet::subbands(w, h, levels);
+        let layout = CoefficientLayout::new(w, h, &subbands, &vec![0; subbands.len()]);
+        let top = header.top_plane.map(u32::from);
+        let source = payload_source(&sections, complete);
+        let wide = Decoder::run_from(&layout, header.coder, source, top, options.max_passes);
+        let wide = reconstruct(&header, wide, mask);
+        let floor = Scaled::floor(top.unwrap());
+        let available = sections.payload_check.data_len as u64;
+        let scaled = stays_above(&header, available, options, floor);
+        let samples = reconstruction(&header, &sections, complete, options, mask).samples;
+        (wide, samples, scaled)
+    }
+
+    #[test]
+    fn the_i16_97_decode_makes_the_samples_of_the_i32_one() {
+        let types = [
+            (SampleType::U16, (97, 61)),
+            (SampleType::I16, (64, 64)),
+            (SampleType::U8, (33, 47)),
+        ];
+        for (sample_type, size) in types {
+            let n = (size.0 * size.1) as u64;
+            let cut = file_97(sample_type, size, Some(n / 8 + 64));
+            let (wide, narrow, scaled) = both_decodes(&cut, &DecodeOptions::default());
+            assert!(scaled, "{sample_type:?} at 1 bpp");
+            assert_eq!(narrow, wide, "{sample_type:?} at 1 bpp");
+            let whole = file_97(sample_type, size, None);
+            let few = DecodeOptions::default().with_max_passes(Some(6));
+            for (options, takes) in [(few, true), (DecodeOptions::default(), false)] {
+                let (wide, narrow, scaled) = both_decodes(&whole, &options);
+                assert_eq!(scaled, takes, "{sample_type:?}, {options:?}");
+                assert_eq!(narrow, wide, "{sample_type:?}, {options:?}");
+            }
+        }
+        for size in [(97, 61), (1, 40), (40, 1), (2, 3)] {
+            let cut = file_97(SampleType::U16, size, Some(60));
+            let (wide, narrow, _) = both_decodes(&cut, &DecodeOptions::default());
+            assert_eq!(narrow, wide, "{size:?} at 40 bytes");
+        }
+        // A prefix has no ladder: the i32 decode.
+        let whole = file_97(SampleType::I16, (64, 64), None);
+        let prefix = DecodeOptions::default().with_max_bytes(Some(300));
+        let (wide, narrow, scaled) = both_decodes(&whole, &prefix);
+        assert!(!scaled);
+        assert_eq!(narrow, wide);
+    }
 
     #[test]
     fn narrowing_clamps_and_keeps_every_sample_in_order() {

@@ -55,6 +55,37 @@ pub(crate) fn to_samples<X: Copy>(
     samples
 }
 
+/// The sample of the 1- or 2-byte integer `sample_type` that [`to_samples`] makes of
+/// value `v`, as `i16` bits (an 8-bit sample in the low byte).
+#[inline]
+pub(crate) fn sample_bits(sample_type: SampleType, v: f64) -> i16 {
+    let (lo, hi) = sample_type.value_range();
+    let whole = whole_in_range(v, lo, hi);
+    match sample_type {
+        SampleType::U16 => whole as u16 as i16,
+        SampleType::U8 => whole as u8 as i16,
+        _ => whole as i16,
+    }
+}
+
+/// The samples whose [`sample_bits`] are `bits`, voids filled as [`to_samples`] fills
+/// them (in place for 16-bit types).
+pub(crate) fn samples_from_bits(
+    sample_type: SampleType,
+    bits: Vec<i16>,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+    nodata: Option<f64>,
+) -> Samples {
+    let bits = bits.into_iter();
+    let mut samples = match sample_type {
+        SampleType::U16 => Samples::U16(bits.map(|b| b as u16).collect()),
+        SampleType::U8 => Samples::U8(bits.map(|b| b as u8).collect()),
+        _ => Samples::I16(bits.collect()),
+    };
+    finish(&mut samples, mask, nodata);
+    samples
+}
+
 /// Whether `mapping` is `q + offset` with a whole offset, so that [`integer_samples`]
 /// computes in integers (|q| < 2^31 and |offset| ≤ 2^40 keep `offset + q` far inside
 /// f64's 2^53).
