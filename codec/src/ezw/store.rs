@@ -234,9 +234,12 @@ pub struct Scaled {
 }
 
 impl Scaled {
-    /// The plane below which a stream whose first pass is `top_plane` is not held.
+    /// The plane below which a stream whose first pass is `top_plane` is not held (no
+    /// coefficient has a plane above [`super::MAX_COEFFICIENT_PLANE`]).
     pub fn floor(top_plane: u32) -> u32 {
-        top_plane.saturating_sub(14)
+        top_plane
+            .min(super::MAX_COEFFICIENT_PLANE)
+            .saturating_sub(14)
     }
 
     /// `n` coefficients, all 0, in units of 2^`shift`.
@@ -370,5 +373,6 @@ mod tests {
         assert!(store.overflowed());
         assert_eq!(Scaled::floor(29), 15);
         assert_eq!(Scaled::floor(9), 0);
+        assert_eq!(Scaled::floor(62), 16);
     }
 }
