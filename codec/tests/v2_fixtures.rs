@@ -194,7 +194,11 @@ fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
             Some(1500),
             "tiled_overlap_i16_lossless.prefix1500",
         ),
-        ("tiled_overlap_i16_97_2bpp", None, "tiled_overlap_i16_97_2bpp"),
+        (
+            "tiled_overlap_i16_97_2bpp",
+            None,
+            "tiled_overlap_i16_97_2bpp",
+        ),
     ] {
         let file = fixture(&format!("{name}.ezw"));
         let options = DecodeOptions::default().with_max_bytes(budget);
