@@ -147,6 +147,10 @@ pub struct Tiling {
     pub overlap: u32,
     /// Bytes of the tile index, framed.
     pub index_len: u64,
+    /// The tiles' streams have the tile layout (headers without magic, version or
+    /// ladder; see [`Header::parse_tile`]) and the index its compact form; false in files
+    /// written before it, whose tiles are single-stream files.
+    pub compact_tiles: bool,
 }
 
 impl Header {
@@ -222,22 +226,7 @@ impl Header {
             2 => usize::try_from(r.varint()?).unwrap_or(usize::MAX),
             _ => return Err(CodecError::UnsupportedVersion(version, VERSION)),
         };
-        if header_len < r.pos + 4 || header_len > data.len() {
-            return Err(if header_len > data.len() && header_len <= MAX_HEADER_LEN {
-                CodecError::TruncatedHeader("file ends inside the header")
-            } else {
-                CodecError::InvalidHeader(format!("header length {header_len}"))
-            });
-        }
-        let stored = u32::from_le_bytes(
-            data[header_len - 4..header_len]
-                .try_into()
-                .expect("4 bytes"),
-        );
-        let computed = crc32fast::hash(&data[..header_len - 4]);
-        if stored != computed {
-            return Err(CodecError::HeaderChecksum { stored, computed });
-        }
+        let header_len = checked_header_len(data, header_len, r.pos)?;
         // From here on the bytes are what the encoder wrote; the checks below guard
         // against a forged checksum.
         let mut r = Reader {
@@ -263,25 +252,8 @@ impl Header {
             }
             return Ok((header, header_len));
         }
+        check_section_lens(&header, header_len)?;
         let ladder_len = header.ladder_len as usize;
-        let mut file_len = header_len as u64;
-        for (what, len) in [
-            ("nodata mask", header.mask_len as u64),
-            ("payload", header.payload_len),
-            ("residual section", header.residual_len as u64),
-            ("ladder", ladder_len as u64),
-        ] {
-            if logical_len(len).is_none() {
-                return Err(CodecError::InvalidHeader(format!("{what} length {len}")));
-            }
-            // Offsets are computed in usize: the whole file must be addressable.
-            file_len = file_len
-                .checked_add(len)
-                .filter(|&end| end <= MAX_FILE_LEN)
-                .ok_or_else(|| {
-                    CodecError::InvalidHeader(format!("{what} length {len} runs past any file"))
-                })?;
-        }
         // The ladder trails the file; a truncated or damaged one is simply not shown.
         let ladder_start = (header_len as u64)
             .saturating_add(header.mask_len as u64)
@@ -302,6 +274,36 @@ impl Header {
             }
         }
         Ok((header, header_len))
+    }
+
+    /// Parses and validates a header in the tile layout (the tiles of a tiled file
+    /// under flag 13: no magic, version, ladder or valid range) at the start of `data`;
+    /// returns it and its length.
+    pub fn parse_tile(data: &[u8]) -> Result<(Header, usize), CodecError> {
+        let mut r = Reader { data, pos: 0 };
+        let header_len = match r.varint() {
+            Ok(len) => usize::try_from(len).unwrap_or(usize::MAX),
+            Err(_) => return Err(CodecError::TruncatedHeader("tile ends inside its header")),
+        };
+        let header_len = checked_header_len(data, header_len, r.pos)?;
+        let mut r = Reader {
+            data: &data[..header_len - 4],
+            pos: r.pos,
+        };
+        let header = v2::parse_tile_fields(&mut r)?;
+        if r.pos != r.data.len() {
+            return Err(CodecError::InvalidHeader(
+                "trailing bytes in the header".into(),
+            ));
+        }
+        header.validate()?;
+        check_section_lens(&header, header_len)?;
+        Ok((header, header_len))
+    }
+
+    /// Serialises the header in the tile layout (see [`Header::parse_tile`]).
+    pub(crate) fn to_tile_bytes(&self) -> Vec<u8> {
+        v2::write_tile(self)
     }
 
     /// Checks the fields whose values no stream can have (a forged checksum).
@@ -345,9 +347,14 @@ impl Header {
     }
 
     /// The section that trails a single stream: its valid range, then the
-    /// rate–distortion ladder.
+    /// rate–distortion ladder; empty when neither is known (a tile's stream: the tiled
+    /// file's header and index hold them).
     pub(crate) fn ladder_bytes(&self) -> Vec<u8> {
         let mut out = Vec::new();
+        let range_unknown = self.valid_range.0.is_nan() && self.valid_range.1.is_nan();
+        if range_unknown && self.passes.is_empty() {
+            return out;
+        }
         if self.tiling.is_none() {
             number::write_number(&mut out, self.valid_range.0);
             number::write_number(&mut out, self.valid_range.1);
@@ -361,6 +368,52 @@ impl Header {
         }
         out
     }
+}
+
+/// `header_len` as a header at the start of `data` whose fields start at `fields` claims
+/// it, once its checksum (its last 4 bytes) is checked.
+fn checked_header_len(data: &[u8], header_len: usize, fields: usize) -> Result<usize, CodecError> {
+    if header_len < fields + 4 || header_len > data.len() {
+        return Err(if header_len > data.len() && header_len <= MAX_HEADER_LEN {
+            CodecError::TruncatedHeader("file ends inside the header")
+        } else {
+            CodecError::InvalidHeader(format!("header length {header_len}"))
+        });
+    }
+    let stored = u32::from_le_bytes(
+        data[header_len - 4..header_len]
+            .try_into()
+            .expect("4 bytes"),
+    );
+    let computed = crc32fast::hash(&data[..header_len - 4]);
+    if stored != computed {
+        return Err(CodecError::HeaderChecksum { stored, computed });
+    }
+    Ok(header_len)
+}
+
+/// Checks that the sections `header` lists after `header_len` bytes have valid framed
+/// lengths and end within any file.
+fn check_section_lens(header: &Header, header_len: usize) -> Result<(), CodecError> {
+    let mut file_len = header_len as u64;
+    for (what, len) in [
+        ("nodata mask", header.mask_len as u64),
+        ("payload", header.payload_len),
+        ("residual section", header.residual_len as u64),
+        ("ladder", header.ladder_len as u64),
+    ] {
+        if logical_len(len).is_none() {
+            return Err(CodecError::InvalidHeader(format!("{what} length {len}")));
+        }
+        // Offsets are computed in usize: the whole file must be addressable.
+        file_len = file_len
+            .checked_add(len)
+            .filter(|&end| end <= MAX_FILE_LEN)
+            .ok_or_else(|| {
+                CodecError::InvalidHeader(format!("{what} length {len} runs past any file"))
+            })?;
+    }
+    Ok(())
 }
 
 /// `georef` as a version-2 file carries it: a CRS its EPSG code says completely is reduced
@@ -626,26 +679,55 @@ pub fn assemble(
     payload: &[u8],
     residual: &[u8],
 ) -> (Vec<u8>, usize) {
+    assemble_as(Layout::File, header, [mask, payload, residual])
+}
+
+/// Size of the file [`assemble`] makes from sections of these logical sizes.
+pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usize) -> usize {
+    assembled_len_as(Layout::File, header, [mask, payload, residual])
+}
+
+/// How a stream is laid out: as a file, or as a tile of a tiled file (a header in the
+/// tile layout, no ladder: see [`Header::parse_tile`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Layout {
+    File,
+    Tile,
+}
+
+/// [`assemble`] in either layout, from the mask, payload and residual section.
+pub(crate) fn assemble_as(
+    layout: Layout,
+    header: &mut Header,
+    [mask, payload, residual]: [&[u8]; 3],
+) -> (Vec<u8>, usize) {
     header.mask_len = framed_len(mask.len()) as u32;
     header.payload_len = framed_len(payload.len()) as u64;
     header.residual_len = framed_len(residual.len()) as u32;
-    header.ladder_len = framed_len(header.ladder_bytes().len()) as u32;
-    let header_bytes = header.to_bytes();
-    let mut out = Vec::with_capacity(assembled_len(
-        header,
-        mask.len(),
-        payload.len(),
-        residual.len(),
-    ));
+    let ladder = match layout {
+        Layout::File => header.ladder_bytes(),
+        Layout::Tile => Vec::new(),
+    };
+    header.ladder_len = framed_len(ladder.len()) as u32;
+    let header_bytes = match layout {
+        Layout::File => header.to_bytes(),
+        Layout::Tile => header.to_tile_bytes(),
+    };
+    let sizes = [mask.len(), payload.len(), residual.len()];
+    let mut out = Vec::with_capacity(assembled_len_as(layout, header, sizes));
     out.extend_from_slice(&header_bytes);
-    for section in [mask, payload, residual, &header.ladder_bytes()] {
+    for section in [mask, payload, residual, &ladder] {
         out.extend_from_slice(&frame(section));
     }
     (out, header_bytes.len())
 }
 
-/// Size of the file [`assemble`] makes from sections of these logical sizes.
-pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usize) -> usize {
+/// [`assembled_len`] in either layout.
+pub(crate) fn assembled_len_as(
+    layout: Layout,
+    header: &Header,
+    [mask, payload, residual]: [usize; 3],
+) -> usize {
     // The header's size depends on the section lengths (varints).
     let sized = Header {
         mask_len: framed_len(mask) as u32,
@@ -653,11 +735,15 @@ pub fn assembled_len(header: &Header, mask: usize, payload: usize, residual: usi
         residual_len: framed_len(residual) as u32,
         ..header.clone()
     };
-    sized.to_bytes().len()
+    let (header_len, ladder_len) = match layout {
+        Layout::File => (sized.to_bytes().len(), header.ladder_bytes().len()),
+        Layout::Tile => (sized.to_tile_bytes().len(), 0),
+    };
+    header_len
         + framed_len(mask)
         + framed_len(payload)
         + framed_len(residual)
-        + framed_len(header.ladder_bytes().len())
+        + framed_len(ladder_len)
 }
 
 /// The state of one framed section of a file, as [`verify`] finds it.
@@ -718,6 +804,17 @@ pub fn verify(data: &[u8]) -> Result<Verification, CodecError> {
     if header.tiling.is_some() {
         return crate::tiles::verify_tiled(data);
     }
+    Ok(verify_sections(data, header, header_len))
+}
+
+/// [`verify`] of a tile's stream in the tile layout (see [`Header::parse_tile`]).
+pub(crate) fn verify_tile(data: &[u8]) -> Result<Verification, CodecError> {
+    let (header, header_len) = Header::parse_tile(data)?;
+    Ok(verify_sections(data, header, header_len))
+}
+
+/// The checks of a single stream's sections, after its header.
+fn verify_sections(data: &[u8], header: Header, header_len: usize) -> Verification {
     let mut offset = header_len as u64;
     let mut sections = Vec::new();
     for (name, len) in [
@@ -767,14 +864,14 @@ pub fn verify(data: &[u8]) -> Result<Verification, CodecError> {
             .filter(|p| payload.offset + physical_offset(p.end_byte) <= usable_bytes)
             .count() as u32
     });
-    Ok(Verification {
+    Verification {
         header,
         header_len: header_len as u64,
         sections,
         trailing_bytes,
         usable_bytes,
         usable_passes,
-    })
+    }
 }
 
 /// A 9/7 subband scale (a synthesis norm, about 0.5–3) in 1/8192 units.
@@ -1233,6 +1330,78 @@ mod tests {
         assert!(matches!(
             Header::parse(&bytes),
             Err(CodecError::UnsupportedVersion(9, 2))
+        ));
+    }
+
+    /// A tile's stream: the sample header without its file-only parts.
+    fn tile_header() -> Header {
+        Header {
+            georef: None,
+            metadata: Metadata::default(),
+            passes: Vec::new(),
+            valid_range: (f64::NAN, f64::NAN),
+            ..sample_header()
+        }
+    }
+
+    #[test]
+    fn a_tile_header_round_trips_without_magic_version_ladder_or_range() {
+        let mut tile = tile_header();
+        let (bytes, header_len) = assemble_as(Layout::Tile, &mut tile, [&[0], &[1, 2, 3], &[]]);
+        assert_eq!(
+            bytes.len(),
+            header_len + 5 + 7,
+            "mask and payload, no ladder"
+        );
+        let (parsed, len) = Header::parse_tile(&bytes).unwrap();
+        assert_eq!(len, header_len);
+        assert_eq!(
+            (parsed.ladder_len, parsed.payload_len, parsed.mask_len),
+            (0, 7, 5)
+        );
+        assert!(parsed.valid_range.0.is_nan() && parsed.valid_range.1.is_nan());
+        let same = |h: &Header| Header {
+            nodata: None,
+            valid_range: (0.0, 0.0),
+            ..h.clone()
+        };
+        assert_eq!(same(&parsed), same(&tile));
+        // The file layout of the same stream: magic (8), version (2), ladder length (1)
+        // and a second flags byte (flag 10) more.
+        let mut file = tile_header();
+        let (_, file_header_len) = assemble(&mut file, &[0], &[1, 2, 3], &[]);
+        assert_eq!(file_header_len, header_len + 12);
+        assert!(matches!(Header::parse(&bytes), Err(CodecError::BadMagic)));
+    }
+
+    #[test]
+    fn a_tile_header_is_checked_like_a_file_header() {
+        let mut tile = tile_header();
+        let (bytes, header_len) = assemble_as(Layout::Tile, &mut tile, [&[], &[1, 2, 3], &[]]);
+        for cut in 0..header_len {
+            assert!(
+                matches!(
+                    Header::parse_tile(&bytes[..cut]),
+                    Err(CodecError::TruncatedHeader(_))
+                ),
+                "cut at {cut}"
+            );
+        }
+        for byte in 0..header_len {
+            let mut flipped = bytes.clone();
+            flipped[byte] ^= 0x10;
+            assert!(Header::parse_tile(&flipped).is_err(), "flip in byte {byte}");
+        }
+        // Flags only a file's header has (here georeferencing, flag 1) are refused, with
+        // a valid checksum too.
+        let mut forged = bytes[..header_len].to_vec();
+        assert!(forged[1] < 0x80, "one flags byte after the one-byte length");
+        forged[1] |= 1 << 1;
+        let crc = crc32fast::hash(&forged[..header_len - 4]);
+        forged[header_len - 4..].copy_from_slice(&crc.to_le_bytes());
+        assert!(matches!(
+            Header::parse_tile(&forged),
+            Err(CodecError::InvalidHeader(_))
         ));
     }
 }

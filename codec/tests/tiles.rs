@@ -357,7 +357,8 @@ fn every_tile_of_a_max_error_file_has_a_ladder_start() {
             .unwrap()
             .unwrap();
         let corrected = layout.offsets.iter().any(|&o| {
-            let (header, _) = wavemesh_codec::Header::parse(&file.bytes[o as usize..]).unwrap();
+            let (header, _) =
+                wavemesh_codec::Header::parse_tile(&file.bytes[o as usize..]).unwrap();
             header.correction_step > 0.0
         });
         eprintln!("max error {e}: corrections in some tile: {corrected}");

@@ -180,3 +180,39 @@ fn f32_fixtures_of_the_range_in_header_layout_decode_to_their_recorded_samples()
         );
     }
 }
+
+/// Tiled files written before tiles had compact headers (commit 732b23a: overlapping
+/// tiles, each a whole single-stream file with magic, size and ladder), from the same
+/// 120 × 90 terrain in 6 tiles of 40 × 30: lossless whole and at a 1500-byte budget, and
+/// a 9/7 file cut at 2 bpp.
+#[test]
+fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
+    for (name, budget, decoded) in [
+        ("tiled_overlap_i16_lossless", None, "tiled_i16_lossless"),
+        (
+            "tiled_overlap_i16_lossless",
+            Some(1500),
+            "tiled_overlap_i16_lossless.prefix1500",
+        ),
+        (
+            "tiled_overlap_i16_97_2bpp",
+            None,
+            "tiled_overlap_i16_97_2bpp",
+        ),
+    ] {
+        let file = fixture(&format!("{name}.ezw"));
+        let options = DecodeOptions::default().with_max_bytes(budget);
+        let out = decode(&file, &options).unwrap();
+        let tiling = out.header.tiling.expect("a tiled file");
+        assert_eq!(
+            (tiling.tile_width, tiling.tile_height, tiling.overlap),
+            (40, 30, 2)
+        );
+        assert!(out.damage.is_none(), "{name} damage");
+        assert_eq!(
+            raw(&out.raster.samples),
+            fixture(&format!("{decoded}.decoded")),
+            "{name} at {budget:?}"
+        );
+    }
+}

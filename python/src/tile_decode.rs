@@ -25,7 +25,8 @@ fn open(path: &Path) -> PyResult<FileSource> {
 /// per sample or `nbytes` bytes (as `decode` shares it among tiles), read from its header
 /// and index only: a dict of `width`, `height`, `tile_width`, `tile_height`, `overlap`
 /// (samples each tile's stream codes beyond the tile on each side, within the raster),
-/// `sample_type`, `nodata`, and per tile in grid order `offsets` (file byte where its
+/// `sample_type`, `nodata`, `compact_tiles` (the tiles' streams have the tile layout, as
+/// `decode_tile` needs to know), and per tile in grid order `offsets` (file byte where its
 /// stream starts) and `lengths` (bytes of it the decode reads).
 #[pyfunction]
 #[pyo3(signature = (path, *, bpp=None, nbytes=None))]
@@ -60,6 +61,7 @@ pub fn tiled_plan<'py>(
     out.set_item("overlap", layout.grid.overlap)?;
     out.set_item("sample_type", layout.header.sample_type.name())?;
     out.set_item("nodata", layout.header.nodata)?;
+    out.set_item("compact_tiles", layout.compact_tiles())?;
     out.set_item("offsets", &layout.offsets)?;
     out.set_item("lengths", lengths)?;
     Ok(out)
@@ -69,10 +71,11 @@ pub fn tiled_plan<'py>(
 /// range read), a `width × height` tile whose voids are `nodata` (the file's), as
 /// `decode` decodes it; `(samples, valid)`. The stream codes the tile and its overlap:
 /// `coded = (x, y, coded_width, coded_height)` says where the tile lies in what it codes
-/// (the tile alone when not given). Damage, a tile cut short by the end of the file, or
-/// a tile of another size raise `CodecError`.
+/// (the tile alone when not given); `compact_tiles` is the plan's. Damage, a tile cut
+/// short by the end of the file, or a tile of another size raise `CodecError`.
 #[pyfunction]
-#[pyo3(signature = (path, offset, length, *, width, height, nodata=None, coded=None))]
+#[pyo3(signature = (path, offset, length, *, width, height, nodata=None, coded=None,
+    compact_tiles=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn decode_tile<'py>(
     py: Python<'py>,
@@ -83,6 +86,7 @@ pub fn decode_tile<'py>(
     height: usize,
     nodata: Option<f64>,
     coded: Option<(usize, usize, usize, usize)>,
+    compact_tiles: bool,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let (x, y, coded_width, coded_height) = coded.unwrap_or((0, 0, width, height));
     if x + width > coded_width || y + height > coded_height {
@@ -99,7 +103,7 @@ pub fn decode_tile<'py>(
     };
     let options = DecodeOptions::default().with_strict(true).with_threads(1);
     let decoded = py
-        .detach(|| wavemesh_codec::decode(&bytes, &options))
+        .detach(|| wavemesh_codec::tiles::decode_tile(&bytes, compact_tiles, &options))
         .map_err(at)?;
     let raster = &decoded.raster;
     if (raster.width, raster.height) != (coded_width, coded_height) {

@@ -227,6 +227,7 @@ class _TileReader:
         self.tile_shape = (plan["tile_height"], plan["tile_width"])
         self.overlap = plan["overlap"]
         self.nodata = plan["nodata"]
+        self.compact_tiles = plan["compact_tiles"]
         self.offsets = plan["offsets"]
         self.lengths = plan["lengths"]
         self.token = (path, os.stat(path).st_mtime_ns, self.offsets, self.lengths)
@@ -263,6 +264,7 @@ class _TileReader:
                 coded_columns.stop - coded_columns.start,
                 coded_rows.stop - coded_rows.start,
             ),
+            compact_tiles=self.compact_tiles,
         )
         tile = wavemesh._masked(samples, valid, self.nodata)
         if not wavemesh._fill_value_fits(self.nodata, tile.dtype):

@@ -29,7 +29,8 @@ mod flag {
     pub const RANGE_IN_LADDER: u64 = 1 << 10;
     pub const CORRECTION_STEP_IMPLIED: u64 = 1 << 11;
     pub const F32_MAPPING: u64 = 1 << 12;
-    pub const ALL: u64 = (1 << 13) - 1;
+    pub const COMPACT_TILES: u64 = 1 << 13;
+    pub const ALL: u64 = (1 << 14) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -65,8 +66,33 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
     }
     let mut body = Vec::with_capacity(128);
     write_varint(&mut body, flags(header));
-    write_varint(&mut body, header.width.into());
-    write_varint(&mut body, header.height.into());
+    write_stream_fields(&mut body, header);
+    write_varint(
+        &mut body,
+        super::framed_len(header.ladder_bytes().len()) as u64,
+    );
+    write_gis(&mut body, header);
+    finish(&file_prefix(), body)
+}
+
+/// Serialises a single stream's header in the tile layout (the tiles of a tiled file
+/// under flag 13): [`write`]'s fields without the magic, the version and the ladder
+/// length (a tile has no ladder), flag 10 clear and no valid range (the tiled file's
+/// header has it), and no georeferencing or metadata.
+pub(super) fn write_tile(header: &Header) -> Vec<u8> {
+    debug_assert!(header.tiling.is_none() && header.georef.is_none());
+    debug_assert!(header.metadata.is_empty() && header.passes.is_empty());
+    let mut body = Vec::with_capacity(32);
+    write_varint(&mut body, flags(header) & !flag::RANGE_IN_LADDER);
+    write_stream_fields(&mut body, header);
+    finish(&[], body)
+}
+
+/// The fields a stream's header has in both layouts, from the size through the
+/// residual section's.
+fn write_stream_fields(body: &mut Vec<u8>, header: &Header) {
+    write_varint(body, header.width.into());
+    write_varint(body, header.height.into());
     body.extend_from_slice(&[
         header.sample_type.code()
             | header.wavelet.code() << 3
@@ -74,8 +100,8 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
             | u8::from(header.coder != Coder::V1) << CODER_2_BIT,
         header.levels | levels_coder_bits(header.coder),
     ]);
-    write_mapping(&mut body, header);
-    write_values(&mut body, header, false);
+    write_mapping(body, header);
+    write_values(body, header, false);
     body.push(header.top_plane.map_or(0xFF, |p| p));
     if bands_listed(header) {
         for &(shift, scale) in &header.bands {
@@ -85,22 +111,16 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
             }
         }
     }
-    write_varint(&mut body, header.payload_len);
+    write_varint(body, header.payload_len);
     if header.mask_len > 0 {
-        write_varint(&mut body, header.mask_len.into());
+        write_varint(body, header.mask_len.into());
     }
     if has_residual(header) {
-        write_varint(&mut body, header.residual_len.into());
+        write_varint(body, header.residual_len.into());
         if !correction_step_implied(header) {
-            write_number(&mut body, header.correction_step);
+            write_number(body, header.correction_step);
         }
     }
-    write_varint(
-        &mut body,
-        super::framed_len(header.ladder_bytes().len()) as u64,
-    );
-    write_gis(&mut body, header);
-    finish(body)
 }
 
 /// The offset and the step: the sample step means something to 5/3 streams only, the
@@ -157,7 +177,7 @@ fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
     write_values(&mut body, header, true);
     write_varint(&mut body, tiling.index_len);
     write_gis(&mut body, header);
-    finish(body)
+    finish(&file_prefix(), body)
 }
 
 /// The error bound (when listed), the valid range (`with_range`: a tiled header's; a
@@ -186,16 +206,22 @@ fn write_gis(body: &mut Vec<u8>, header: &Header) {
     }
 }
 
-/// Prepends the magic, version and header length, and appends the CRC.
-fn finish(body: Vec<u8>) -> Vec<u8> {
-    let prefix = super::MAGIC.len() + 2;
-    let mut total = prefix + body.len() + 4 + 1;
-    while varint_len(total as u64) != total - prefix - body.len() - 4 {
+/// What a file's header starts with: the magic and the version.
+fn file_prefix() -> Vec<u8> {
+    let mut prefix = super::MAGIC.to_vec();
+    prefix.extend_from_slice(&2u16.to_le_bytes());
+    prefix
+}
+
+/// Prepends `prefix` (the magic and version of a file's header; nothing for a tile's)
+/// and the header length, and appends the CRC.
+fn finish(prefix: &[u8], body: Vec<u8>) -> Vec<u8> {
+    let mut total = prefix.len() + body.len() + 4 + 1;
+    while varint_len(total as u64) != total - prefix.len() - body.len() - 4 {
         total += 1;
     }
     let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(&super::MAGIC);
-    out.extend_from_slice(&2u16.to_le_bytes());
+    out.extend_from_slice(prefix);
     write_varint(&mut out, total as u64);
     out.extend_from_slice(&body);
     let crc = crc32fast::hash(&out);
@@ -222,6 +248,10 @@ fn flags(header: &Header) -> u64 {
         (max_error_listed(header), flag::MAX_ERROR),
         (!single, flag::TILED),
         (header.tiling.is_some_and(|t| t.overlap > 0), flag::OVERLAP),
+        (
+            header.tiling.is_some_and(|t| t.compact_tiles),
+            flag::COMPACT_TILES,
+        ),
         (single, flag::RANGE_IN_LADDER),
         (f32_mapping(header), flag::F32_MAPPING),
         (
@@ -293,18 +323,52 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         }
         return Ok((parse_tiled(r, flags, size, &kind)?, false));
     }
-    if flags & flag::OVERLAP != 0 {
-        return Err(CodecError::InvalidHeader(
-            "a tile overlap in a single stream".into(),
-        ));
+    if flags & (flag::OVERLAP | flag::COMPACT_TILES) != 0 {
+        return Err(CodecError::InvalidHeader(format!(
+            "flags {flags:#x} of a tiled file in a single stream"
+        )));
     }
+    let mut header = read_stream_fields(r, flags, size, &kind)?;
+    header.ladder_len = r.varint_u32("ladder length")?;
+    (header.georef, header.metadata) = read_gis(r, flags)?;
+    Ok((header, flags & flag::RANGE_IN_LADDER != 0))
+}
+
+/// Parses a tile-layout header's fields after its length (see [`write_tile`]); `r` ends
+/// before the CRC. The valid range is NaN: the tiled file's header has it.
+pub(super) fn parse_tile_fields(r: &mut Reader) -> Result<Header, CodecError> {
+    let flags = r.varint()?;
+    let file_only = flag::GEOREF
+        | flag::METADATA
+        | flag::TILED
+        | flag::OVERLAP
+        | flag::RANGE_IN_LADDER
+        | flag::COMPACT_TILES;
+    if flags & !flag::ALL != 0 || flags & file_only != 0 {
+        return Err(CodecError::InvalidHeader(format!(
+            "tile header flags {flags:#x}"
+        )));
+    }
+    let size = (r.varint_u32("width")?, r.varint_u32("height")?);
+    let kind = read_stream_kind(r)?;
+    read_stream_fields(r, flags | flag::RANGE_IN_LADDER, size, &kind)
+}
+
+/// The fields both stream layouts have after the `kinds` and levels bytes, through the
+/// residual section's (see [`write_stream_fields`]).
+fn read_stream_fields(
+    r: &mut Reader,
+    flags: u64,
+    size: (u32, u32),
+    kind: &StreamKind,
+) -> Result<Header, CodecError> {
     let (mapping, coefficient_step) = read_mapping(r, flags, kind.wavelet)?;
     let (max_error, valid_range, nodata) = read_values(r, flags, kind.mode)?;
     let top_plane = match r.u8()? {
         0xFF => None,
         p => Some(p),
     };
-    let bands = read_band_scales(r, flags, size, &kind)?;
+    let bands = read_band_scales(r, flags, size, kind)?;
     let payload_len = r.varint()?;
     let mask_len = if flags & flag::MASK != 0 {
         r.varint_u32("mask length")?
@@ -313,8 +377,6 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
     };
     let (residual_len, correction_step) =
         read_residual(r, flags, (kind.mode, kind.sample_type, max_error))?;
-    let ladder_len = r.varint_u32("ladder length")?;
-    let (georef, metadata) = read_gis(r, flags)?;
     let mut header = Header {
         mapping,
         max_error,
@@ -329,9 +391,6 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         mask_len,
         residual_len,
         correction_step,
-        ladder_len,
-        georef,
-        metadata,
         ..Header::whole_raster(
             size.0,
             size.1,
@@ -344,7 +403,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
     if flags & flag::BANDS_LISTED == 0 {
         header.derived = super::DerivedMemo(Some(super::DerivedBands::as_read(&header)));
     }
-    Ok((header, flags & flag::RANGE_IN_LADDER != 0))
+    Ok(header)
 }
 
 /// What the `kinds` and levels bytes say: the coder, sample type, wavelet, levels and mode.
@@ -560,6 +619,7 @@ fn parse_tiled(
             tile_height,
             overlap,
             index_len,
+            compact_tiles: flags & flag::COMPACT_TILES != 0,
         }),
         ..Header::whole_raster(
             width,

@@ -237,6 +237,26 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
         _ => data,
     };
     let (header, header_len) = Header::parse(data)?;
+    decode_parsed(data, header, header_len, options)
+}
+
+/// Decodes a tile's stream in the tile layout (see [`Header::parse_tile`]): all of
+/// `data`, one tile of a tiled file whose header says so.
+pub(crate) fn decode_tile_stream(
+    data: &[u8],
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
+    let (header, header_len) = Header::parse_tile(data)?;
+    decode_parsed(data, header, header_len, options)
+}
+
+/// Decodes a single stream whose header (`header_len` bytes) is parsed.
+fn decode_parsed(
+    data: &[u8],
+    header: Header,
+    header_len: usize,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
     check_limits(&header, &options.limits)?;
     let sections = StreamSections::read(data, &header, header_len, options.max_bytes)?;
     if let (true, Some(d)) = (options.strict, sections.damage) {

@@ -9,16 +9,26 @@ use crate::error::CodecError;
 use crate::pipeline::{Damage, DecodeOptions, Decoded};
 use crate::raster::{Raster, SampleType, Samples};
 
-/// Decodes one tile's stream (its allocated prefix), on the calling thread.
-pub(super) fn tile(bytes: &[u8], options: &DecodeOptions) -> Result<Decoded, CodecError> {
+/// Decodes one tile's stream, as many of its bytes as `bytes` holds (`compact`: in the
+/// tile layout, as [`TiledLayout::compact_tiles`] says, else a single-stream file), on
+/// the calling thread; `options`' byte limit, threads and significance map are ignored.
+pub fn decode_tile(
+    bytes: &[u8],
+    compact: bool,
+    options: &DecodeOptions,
+) -> Result<Decoded, CodecError> {
     let single = (*options)
         .with_max_bytes(None)
         .with_threads(1)
         .with_significance_map(false);
-    crate::progress::observe(|_| {}, || crate::pipeline::decode(bytes, &single))
+    let decode = || match compact {
+        true => crate::pipeline::decode_tile_stream(bytes, &single),
+        false => crate::pipeline::decode(bytes, &single),
+    };
+    crate::progress::observe(|_| {}, decode)
 }
 
-/// A tile's decode: what [`tile`] returned for it.
+/// A tile's decode: what [`decode_tile`] returned for it.
 type TileDecode = Result<Decoded, CodecError>;
 
 /// The file's tiles in the order the windows place them, each decoded on the workers
@@ -74,7 +84,10 @@ impl<'a, S: ByteSource> TilesAhead<'a, S> {
                 .map_err(|e| CodecError::Read(e.to_string()))?;
             let options = self.options;
             let fetched = bytes.len() as u64;
-            let task = self.workers.spawn(move || tile(&bytes, &options));
+            let compact = self.layout.compact_tiles();
+            let task = self
+                .workers
+                .spawn(move || decode_tile(&bytes, compact, &options));
             self.running.push_back((k, fetched, task));
             self.started += 1;
         }

@@ -62,40 +62,78 @@ impl TileEntry {
 /// Parts a pass is cut into by [`TileEntry::modelled_points`].
 const MODEL_STEPS: u64 = 16;
 
-/// Serialises the index (before framing): per tile, varints `len`, `head_len`, the
-/// initial error (u16, the ladder's log scale), a varint pass count, then per pass the
-/// varint growth of its end over the previous one (the first over `head_len`) and its
-/// error (u16).
-pub(crate) fn write_index(entries: &[TileEntry]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(entries.len() * 64);
+/// Serialises the index (before framing). Compact (files whose tiles have the tile
+/// layout): per tile, varints `len`, `head_len`, the initial error's code (see
+/// [`error_code`]), the pass count, then per pass the growth of its end over the previous
+/// one (the first over `head_len`) and how much its code is below the previous one's.
+/// Before it: the initial error and each pass's error as u16s on the ladder's log scale.
+pub(crate) fn write_index(entries: &[TileEntry], compact: bool) -> Vec<u8> {
+    let mut out = Vec::with_capacity(entries.len() * 32);
     for entry in entries {
         write_varint(&mut out, entry.len);
         write_varint(&mut out, entry.head_len);
-        out.extend_from_slice(&error_to_u16(entry.initial_error).to_le_bytes());
+        let mut code = error_code(entry.initial_error);
+        match compact {
+            true => write_varint(&mut out, code),
+            false => out.extend_from_slice(&error_to_u16(entry.initial_error).to_le_bytes()),
+        }
         write_varint(&mut out, entry.passes.len() as u64);
         let mut previous = entry.head_len;
         for &(end, error) in &entry.passes {
             write_varint(&mut out, end - previous);
-            out.extend_from_slice(&error_to_u16(error).to_le_bytes());
             previous = end;
+            if compact {
+                let drop = code.saturating_sub(error_code(error));
+                write_varint(&mut out, drop);
+                code -= drop;
+            } else {
+                out.extend_from_slice(&error_to_u16(error).to_le_bytes());
+            }
         }
     }
     out
 }
 
-/// Parses an index of `count` entries; every offset must lie inside its tile.
-pub(crate) fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, CodecError> {
+/// A squared error on the compact index's log scale: `round(log2(1 + e) · 32)`, 1/32 of
+/// a bit (≈ 0.09 dB) a step.
+fn error_code(squared_error: f64) -> u64 {
+    ((1.0 + squared_error.max(0.0)).log2() * 32.0).round() as u64
+}
+
+/// Inverse of [`error_code`] (to its precision).
+fn error_of_code(code: u64) -> f64 {
+    (code as f64 / 32.0).exp2() - 1.0
+}
+
+/// Largest error code a compact index may hold (that of an error of 2^2048).
+const MAX_ERROR_CODE: u64 = 2048 * 32;
+
+/// Parses an index of `count` entries (`compact`: see [`write_index`]); every offset
+/// must lie inside its tile.
+pub(crate) fn parse_index(
+    bytes: &[u8],
+    count: usize,
+    compact: bool,
+) -> Result<Vec<TileEntry>, CodecError> {
     let bad = |what: &str| CodecError::InvalidHeader(format!("tile index: {what}"));
     let mut r = Reader {
         data: bytes,
         pos: 0,
     };
-    let mut entries = Vec::with_capacity(count.min(bytes.len() / 5));
+    let mut entries = Vec::with_capacity(count.min(bytes.len() / MIN_ENTRY_BYTES));
+    let field = |r: &mut Reader| r.varint().map_err(|_| bad("ends early"));
+    let old_error = |r: &mut Reader| r.u16().map(error_from_u16).map_err(|_| bad("ends early"));
     for _ in 0..count {
-        let field = |r: &mut Reader| r.varint().map_err(|_| bad("ends early"));
         let len = field(&mut r)?;
         let head_len = field(&mut r)?;
-        let initial_error = error_from_u16(r.u16().map_err(|_| bad("ends early"))?);
+        let mut code = if compact { field(&mut r)? } else { 0 };
+        if code > MAX_ERROR_CODE {
+            return Err(bad("an error beyond any raster's"));
+        }
+        let initial_error = match compact {
+            true => error_of_code(code),
+            false => old_error(&mut r)?,
+        };
         let pass_count = field(&mut r)?;
         if head_len > len || pass_count > 64 {
             return Err(bad("a tile's head or pass count"));
@@ -107,7 +145,15 @@ pub(crate) fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, 
                 .checked_add(field(&mut r)?)
                 .filter(|&e| e <= len)
                 .ok_or_else(|| bad("a pass ends past its tile"))?;
-            passes.push((end, error_from_u16(r.u16().map_err(|_| bad("ends early"))?)));
+            let error = if compact {
+                code = code
+                    .checked_sub(field(&mut r)?)
+                    .ok_or_else(|| bad("an error below zero"))?;
+                error_of_code(code)
+            } else {
+                old_error(&mut r)?
+            };
+            passes.push((end, error));
         }
         entries.push(TileEntry {
             len,
@@ -121,6 +167,9 @@ pub(crate) fn parse_index(bytes: &[u8], count: usize) -> Result<Vec<TileEntry>, 
     }
     Ok(entries)
 }
+
+/// Fewest bytes an index entry takes (four varints of the compact form).
+const MIN_ENTRY_BYTES: usize = 4;
 
 /// A tiled file's header and index, read from the start of a file: all a reader needs to
 /// plan which bytes to fetch.
@@ -157,8 +206,8 @@ impl TiledLayout {
             overlap: tiling.overlap as usize,
         };
         let count = grid.count();
-        // Every entry takes at least 5 bytes; a forged count cannot allocate beyond that.
-        let least = (count as u64).saturating_mul(5);
+        // Every entry takes at least 4 bytes; a forged count cannot allocate beyond that.
+        let least = (count as u64).saturating_mul(MIN_ENTRY_BYTES as u64);
         if logical_len(tiling.index_len).is_none_or(|len| len < least) {
             return Err(CodecError::InvalidHeader(format!(
                 "a tile index of {} bytes for {count} tiles",
@@ -187,7 +236,7 @@ impl TiledLayout {
                 "file ends inside the tile index",
             ));
         }
-        let entries = parse_index(&index.bytes, count)?;
+        let entries = parse_index(&index.bytes, count, tiling.compact_tiles)?;
         let mut offsets = Vec::with_capacity(count);
         let mut offset = header_len as u64 + tiling.index_len;
         for entry in &entries {
@@ -206,6 +255,11 @@ impl TiledLayout {
             entries,
             offsets,
         }))
+    }
+
+    /// Whether the tiles' streams have the tile layout (see [`Header::parse_tile`]).
+    pub fn compact_tiles(&self) -> bool {
+        self.header.tiling.is_some_and(|t| t.compact_tiles)
     }
 
     /// Length of the file the header and index describe.
@@ -263,5 +317,56 @@ mod tests {
             assert!((error - 1024.0 * (-6.0 * t).exp2()).abs() < 1e-9, "{error}");
         }
         assert_eq!(&modelled[17..], &entry.points(true)[2..]);
+    }
+
+    #[test]
+    fn a_compact_index_keeps_errors_to_a_32nd_of_a_bit() {
+        let entries = vec![
+            TileEntry {
+                len: 5000,
+                head_len: 19,
+                initial_error: 3.7e9,
+                passes: vec![(40, 9.1e8), (300, 2.2e8), (301, 2.3e8), (4000, 0.4)],
+            },
+            TileEntry {
+                len: 19,
+                head_len: 19,
+                initial_error: 0.0,
+                passes: Vec::new(),
+            },
+        ];
+        let compact = write_index(&entries, true);
+        assert!(compact.len() < write_index(&entries, false).len());
+        let parsed = parse_index(&compact, 2, true).unwrap();
+        assert_eq!(parsed[1], entries[1]);
+        let (first, read) = (&entries[0], &parsed[0]);
+        assert_eq!((read.len, read.head_len), (first.len, first.head_len));
+        let close = |a: f64, b: f64| ((1.0 + a).log2() - (1.0 + b).log2()).abs() <= 1.0 / 64.0;
+        assert!(close(read.initial_error, first.initial_error));
+        for (k, (&(end, error), &(read_end, read_error))) in
+            first.passes.iter().zip(&read.passes).enumerate()
+        {
+            assert_eq!(end, read_end);
+            // An error above the previous pass's is kept at the previous one.
+            let expected = if k == 2 { first.passes[1].1 } else { error };
+            assert!(
+                close(read_error, expected),
+                "pass {k}: {read_error} for {error}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_compact_index_refuses_errors_below_zero_and_beyond_any_raster() {
+        let mut bytes = Vec::new();
+        for v in [100, 10, 5, 1, 20, 6] {
+            write_varint(&mut bytes, v);
+        }
+        assert!(parse_index(&bytes, 1, true).is_err(), "code 5 less 6");
+        let mut beyond = Vec::new();
+        for v in [100, 10, MAX_ERROR_CODE + 1, 0] {
+            write_varint(&mut beyond, v);
+        }
+        assert!(parse_index(&beyond, 1, true).is_err());
     }
 }

@@ -15,6 +15,7 @@ use std::io;
 
 pub use allocate::allocate;
 use allocate::allocate_points;
+pub use decode::decode_tile;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
 pub use stream::{encode_tile, EncodedTile, TileSummary};
@@ -244,7 +245,7 @@ impl RasterInfo {
 /// order). The tiles' streams follow, in the same order.
 pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> Vec<u8> {
     let entries: Vec<TileEntry> = tiles.iter().map(|t| t.entry.clone()).collect();
-    let index = frame(&index::write_index(&entries));
+    let index = frame(&index::write_index(&entries, true));
     let first = tiles.first().expect("a grid has tiles");
     let mut header = Header::whole_raster(
         info.width as u32,
@@ -268,6 +269,7 @@ pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> 
         tile_height: grid.tile_height as u32,
         overlap: grid.overlap as u32,
         index_len: index.len() as u64,
+        compact_tiles: true,
     });
     let mut out = header.to_bytes();
     out.extend_from_slice(&index);
@@ -448,7 +450,7 @@ pub(crate) fn starved_tiles(
             .map(|p| p.0)
             .max()
             .unwrap_or(0);
-        if lengths[k] >= known && Header::parse(&tile.bytes)?.0.payload_truncated {
+        if lengths[k] >= known && Header::parse_tile(&tile.bytes)?.0.payload_truncated {
             starved.push((k, 4 * tile.bytes.len() as u64));
         }
     }

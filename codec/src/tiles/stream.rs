@@ -1,8 +1,11 @@
-//! One tile's stream: encoded like any single-stream file, then laid out without its
-//! ladder (the index carries it) and, under a byte budget, cut.
+//! One tile's stream: encoded like any single-stream file, then laid out in the tile
+//! layout (a short header, no ladder: the index and the tiled file's header carry it)
+//! and, under a byte budget, cut.
 
 use super::index::TileEntry;
-use crate::container::{assemble, assembled_len, physical_offset, unframe, Header, Mode, CHUNK};
+use crate::container::{
+    assemble_as, assembled_len_as, physical_offset, unframe, Header, Layout, Mode, CHUNK,
+};
 use crate::error::CodecError;
 use crate::pipeline::{EncodeOptions, Encoded};
 use crate::raster::Raster;
@@ -28,7 +31,7 @@ pub struct TileSummary {
 /// A tile's stream as it goes into the file.
 #[derive(Debug, Clone)]
 pub struct EncodedTile {
-    /// The stream (a single-stream `.ezw` file without ladder).
+    /// The stream, in the tile layout (see [`Header::parse_tile`]).
     pub bytes: Vec<u8>,
     /// What the index and header need.
     pub summary: TileSummary,
@@ -75,7 +78,8 @@ pub fn encode_tile(
         .iter()
         .map(|p| (p.end_byte, p.squared_error))
         .collect();
-    lay_out(&encoded, any_valid, passes, None)
+    let valid_range = any_valid.then_some(encoded.header.valid_range);
+    lay_out(&encoded, valid_range, passes, None)
 }
 
 /// `tile` cut to at most `len` bytes: a shorter prefix of its payload, decoded as a
@@ -89,7 +93,7 @@ pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedT
             checkpoints: Vec::new(),
         });
     }
-    let (header, header_len) = Header::parse(tile)?;
+    let (header, header_len) = Header::parse_tile(tile)?;
     let encoded = Encoded {
         bytes: tile.to_vec(),
         header,
@@ -104,7 +108,7 @@ pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedT
         .iter()
         .map(|&(end, error)| (logical_offset(end - summary.entry.head_len), error))
         .collect();
-    lay_out(&encoded, summary.valid_range.is_some(), passes, Some(len))
+    lay_out(&encoded, summary.valid_range, passes, Some(len))
 }
 
 /// Data byte of a framed section at file offset `physical` within it (the inverse of
@@ -113,11 +117,13 @@ fn logical_offset(physical: u64) -> u64 {
     physical - 4 * (physical / (CHUNK as u64 + 4))
 }
 
-/// Re-lays `encoded` out without its ladder, its payload cut to fit `cut` bytes when
-/// given, and builds its summary; `passes` are its passes' payload ends and errors.
+/// Re-lays `encoded` out in the tile layout (its passes and valid range go to the index
+/// and the tiled header), its payload cut to fit `cut` bytes when given, and builds its
+/// summary; `passes` are its passes' payload ends and errors, `valid_range` its valid
+/// samples' (`None`: all nodata).
 fn lay_out(
     encoded: &Encoded,
-    any_valid: bool,
+    valid_range: Option<(f64, f64)>,
     passes: Vec<(u64, f64)>,
     cut: Option<u64>,
 ) -> Result<EncodedTile, CodecError> {
@@ -131,6 +137,7 @@ fn lay_out(
     let mut payload = section(payload_start, header.payload_len as usize);
     let mut residual = section(residual_start, header.residual_len as usize);
     header.passes.clear();
+    header.valid_range = (f64::NAN, f64::NAN);
     if let Some(limit) = cut {
         header.payload_truncated = true;
         header.correction_step = 0.0;
@@ -139,10 +146,11 @@ fn lay_out(
         residual.clear();
         // The cut header may be a byte or two longer than the whole one: a limit below
         // it keeps no payload (the caller's total check sees the excess).
-        let fits = |p: usize| assembled_len(&header, mask.len(), p, 0) as u64 <= limit;
+        let fits =
+            |p: usize| assembled_len_as(Layout::Tile, &header, [mask.len(), p, 0]) as u64 <= limit;
         payload.truncate(largest(payload.len(), fits));
     }
-    let (bytes, header_len) = assemble(&mut header, &mask, &payload, &residual);
+    let (bytes, header_len) = assemble_as(Layout::Tile, &mut header, [&mask, &payload, &residual]);
     let head_len = (header_len + header.mask_len as usize) as u64;
     let in_tile = |points: &[(u64, f64)]| -> Vec<(u64, f64)> {
         points
@@ -162,7 +170,7 @@ fn lay_out(
         },
         mode: header.mode,
         max_error: header.max_error,
-        valid_range: any_valid.then_some(header.valid_range),
+        valid_range,
         wavelet: header.wavelet,
         levels: header.levels,
     };

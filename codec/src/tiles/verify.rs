@@ -2,7 +2,7 @@
 //! sections, each tile reported on its own line.
 
 use super::TiledLayout;
-use crate::container::{logical_len, verify, SectionCheck, Verification, CHUNK};
+use crate::container::{logical_len, verify, verify_tile, SectionCheck, Verification, CHUNK};
 use crate::error::CodecError;
 
 /// Checks a tiled file: one section for the index, then one per tile (its header and all
@@ -53,7 +53,12 @@ pub(crate) fn verify_tiled(data: &[u8]) -> Result<Verification, CodecError> {
     for (k, (entry, &offset)) in layout.entries.iter().zip(&layout.offsets).enumerate() {
         let start = (offset as usize).min(data.len());
         let end = (offset.saturating_add(entry.len) as usize).min(data.len());
-        let check = tile_check(&data[start..end], k as u32, offset, entry.len);
+        let bytes = &data[start..end];
+        let found = match layout.compact_tiles() {
+            true => verify_tile(bytes),
+            false => verify(bytes),
+        };
+        let check = tile_check(found, bytes.len(), (k as u32, offset, entry.len));
         if check.damaged_at.is_none() {
             usable += (end - start) as u64;
         }
@@ -65,9 +70,13 @@ pub(crate) fn verify_tiled(data: &[u8]) -> Result<Verification, CodecError> {
     ))
 }
 
-/// One tile's checksums as one section: its chunks summed, damaged where its header or
-/// first damaged section is.
-fn tile_check(bytes: &[u8], tile: u32, offset: u64, len: u64) -> SectionCheck {
+/// One tile's checksums as one section, from what verifying its `available` bytes
+/// `found`: its chunks summed, damaged where its header or first damaged section is.
+fn tile_check(
+    found: Result<Verification, CodecError>,
+    available: usize,
+    (tile, offset, len): (u32, u64, u64),
+) -> SectionCheck {
     let chunks = (len as usize).div_ceil(CHUNK + 4) as u64;
     let mut check = SectionCheck {
         name: "tile",
@@ -79,7 +88,7 @@ fn tile_check(bytes: &[u8], tile: u32, offset: u64, len: u64) -> SectionCheck {
         damaged_at: None,
         complete: false,
     };
-    match verify(bytes) {
+    match found {
         Ok(found) => {
             check.verified_chunks = found.sections.iter().map(|s| s.verified_chunks).sum();
             check.chunks = found.sections.iter().map(|s| s.chunks).sum();
@@ -89,7 +98,7 @@ fn tile_check(bytes: &[u8], tile: u32, offset: u64, len: u64) -> SectionCheck {
                 .filter_map(|s| s.damaged_at)
                 .min()
                 .map(|at| offset + at);
-            check.complete = found.complete() && bytes.len() as u64 == len;
+            check.complete = found.complete() && available as u64 == len;
         }
         Err(CodecError::TruncatedHeader(_)) => {}
         Err(_) => check.damaged_at = Some(offset),
