@@ -582,6 +582,12 @@ pub fn physical_offset(logical: u64) -> u64 {
     logical + 4 * (logical / CHUNK as u64)
 }
 
+/// Data byte of a framed section at file offset `physical` within it (the inverse of
+/// [`physical_offset`]).
+pub(crate) fn logical_offset(physical: u64) -> u64 {
+    physical - 4 * (physical / (CHUNK as u64 + 4))
+}
+
 /// Splits `section` into checksummed chunks.
 pub fn frame(section: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(framed_len(section.len()));

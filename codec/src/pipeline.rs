@@ -5,7 +5,7 @@ mod decode;
 mod encode;
 mod options;
 
-pub(crate) use decode::decode_tile_stream;
+pub(crate) use decode::decode_parsed;
 pub use decode::{decode, decode_window, decode_windows, Damage, Decoded};
 pub(crate) use encode::encode_stream;
 pub use encode::{encode, Encoded};

@@ -103,7 +103,7 @@ pub fn decode_tile<'py>(
     };
     let options = DecodeOptions::default().with_strict(true).with_threads(1);
     let decoded = py
-        .detach(|| wavemesh_codec::tiles::decode_tile(&bytes, compact_tiles, &options))
+        .detach(|| wavemesh_codec::tiles::decode_tile(&bytes, compact_tiles, &[], &options))
         .map_err(at)?;
     let raster = &decoded.raster;
     if (raster.width, raster.height) != (coded_width, coded_height) {

@@ -240,18 +240,8 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
     decode_parsed(data, header, header_len, options)
 }
 
-/// Decodes a tile's stream in the tile layout (see [`Header::parse_tile`]): all of
-/// `data`, one tile of a tiled file whose header says so.
-pub(crate) fn decode_tile_stream(
-    data: &[u8],
-    options: &DecodeOptions,
-) -> Result<Decoded, CodecError> {
-    let (header, header_len) = Header::parse_tile(data)?;
-    decode_parsed(data, header, header_len, options)
-}
-
 /// Decodes a single stream whose header (`header_len` bytes) is parsed.
-fn decode_parsed(
+pub(crate) fn decode_parsed(
     data: &[u8],
     header: Header,
     header_len: usize,

@@ -4,28 +4,57 @@ use std::collections::VecDeque;
 
 use super::workers::{Task, Workers};
 use super::{ByteSource, TiledLayout, Window};
-use crate::container::Header;
+use crate::container::{logical_offset, Header};
 use crate::error::CodecError;
+use crate::ezw::PassRecord;
 use crate::pipeline::{Damage, DecodeOptions, Decoded};
 use crate::raster::{Raster, SampleType, Samples};
 
 /// Decodes one tile's stream, as many of its bytes as `bytes` holds (`compact`: in the
 /// tile layout, as [`TiledLayout::compact_tiles`] says, else a single-stream file), on
 /// the calling thread; `options`' byte limit, threads and significance map are ignored.
+/// `passes` are the tile's index entry's (prefix length, error) per pass, or empty: its
+/// stream holds no ladder, and with one a 9/7 tile of 1- or 2-byte samples decodes in
+/// less memory (the ladder says which planes the prefix reaches).
 pub fn decode_tile(
     bytes: &[u8],
     compact: bool,
+    passes: &[(u64, f64)],
     options: &DecodeOptions,
 ) -> Result<Decoded, CodecError> {
     let single = (*options)
         .with_max_bytes(None)
         .with_threads(1)
         .with_significance_map(false);
-    let decode = || match compact {
-        true => crate::pipeline::decode_tile_stream(bytes, &single),
-        false => crate::pipeline::decode(bytes, &single),
+    let (mut header, header_len) = match compact {
+        true => Header::parse_tile(bytes)?,
+        false => Header::parse(bytes)?,
     };
-    crate::progress::observe(|_| {}, decode)
+    if header.passes.is_empty() {
+        header.passes = ladder_of(&header, header_len, passes);
+    }
+    crate::progress::observe(
+        |_| {},
+        || crate::pipeline::decode_parsed(bytes, header, header_len, &single),
+    )
+}
+
+/// A tile's ladder from its index entry's passes (prefix lengths from the tile's start):
+/// pass `k` is plane `top − k`, and ends at that prefix's payload byte.
+fn ladder_of(header: &Header, header_len: usize, passes: &[(u64, f64)]) -> Vec<PassRecord> {
+    let Some(top) = header.top_plane.map(u32::from) else {
+        return Vec::new();
+    };
+    let payload_start = header_len as u64 + u64::from(header.mask_len);
+    passes
+        .iter()
+        .zip(0..=top)
+        .map(|(&(end, squared_error), k)| PassRecord {
+            plane: top - k,
+            end_byte: logical_offset(end.saturating_sub(payload_start)),
+            squared_error,
+        })
+        .collect()
 }
 
 /// A tile's decode: what [`decode_tile`] returned for it.
@@ -85,9 +114,10 @@ impl<'a, S: ByteSource> TilesAhead<'a, S> {
             let options = self.options;
             let fetched = bytes.len() as u64;
             let compact = self.layout.compact_tiles();
+            let passes = self.layout.entries[k].passes.clone();
             let task = self
                 .workers
-                .spawn(move || decode_tile(&bytes, compact, &options));
+                .spawn(move || decode_tile(&bytes, compact, &passes, &options));
             self.running.push_back((k, fetched, task));
             self.started += 1;
         }
@@ -245,5 +275,41 @@ fn fill_value(header: &Header) -> f64 {
         Some(nd) if header.sample_type != SampleType::F32 || f64::from(nd as f32) == nd => nd,
         _ if header.sample_type == SampleType::F32 => f64::NAN,
         _ => ((header.valid_range.0 + header.valid_range.1) / 2.0).round(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::EncodeOptions;
+    use crate::tiles::encode_tile;
+
+    /// The ladder a tile's index entry gives its stream is the one the same stream
+    /// has as a file: the same planes, ending at the same payload bytes.
+    #[test]
+    fn a_tile_ladder_from_its_index_entry_is_the_streams() {
+        let values: Vec<f64> = (0..90 * 70)
+            .map(|i| {
+                let (x, y) = ((i % 90) as f64, (i / 90) as f64);
+                300.0 + 80.0 * (x / 9.0).sin() * (y / 13.0).cos() + (i * 7919 % 13) as f64
+            })
+            .collect();
+        let raster = Raster::new(90, 70, Samples::from_f64(SampleType::I16, &values)).unwrap();
+        for options in [EncodeOptions::budget(1500), EncodeOptions::lossless()] {
+            // A tile is coded whole when not given a cap: so is the file here.
+            let whole = options.clone().with_budget_bytes(None);
+            let file = crate::pipeline::encode(&raster, &whole).unwrap();
+            let tile = encode_tile(&raster, &options, None).unwrap();
+            let (header, header_len) = Header::parse_tile(&tile.bytes).unwrap();
+            let ladder = ladder_of(&header, header_len, &tile.summary.entry.passes);
+            assert!(ladder.len() > 3, "{} passes", ladder.len());
+            let planes_and_ends = |passes: &[PassRecord]| -> Vec<(u32, u64)> {
+                passes.iter().map(|p| (p.plane, p.end_byte)).collect()
+            };
+            assert_eq!(
+                planes_and_ends(&ladder),
+                planes_and_ends(&file.header.passes)
+            );
+        }
     }
 }

@@ -4,7 +4,7 @@
 
 use super::index::TileEntry;
 use crate::container::{
-    assemble_as, assembled_len_as, physical_offset, unframe, Header, Layout, Mode, CHUNK,
+    assemble_as, assembled_len_as, logical_offset, physical_offset, unframe, Header, Layout, Mode,
 };
 use crate::error::CodecError;
 use crate::pipeline::{EncodeOptions, Encoded};
@@ -109,12 +109,6 @@ pub fn cut_tile(tile: &[u8], summary: &TileSummary, len: u64) -> Result<EncodedT
         .map(|&(end, error)| (logical_offset(end - summary.entry.head_len), error))
         .collect();
     lay_out(&encoded, summary.valid_range, passes, Some(len))
-}
-
-/// Data byte of a framed section at file offset `physical` within it (the inverse of
-/// [`physical_offset`]).
-fn logical_offset(physical: u64) -> u64 {
-    physical - 4 * (physical / (CHUNK as u64 + 4))
 }
 
 /// Re-lays `encoded` out in the tile layout (its passes and valid range go to the index
