@@ -115,10 +115,13 @@ impl<H: Height> GreedyMesher<'_, H> {
             weighed: vec![NEVER; 3 * triangles],
         };
         let mut flips = 0;
-        for _ in 0..passes {
+        for pass in 0..passes {
             let before = flips;
             for e in 0..self.tin.corners.len() as u32 {
-                self.prefetch_far_side(e as usize, &state);
+                // Later passes weigh only the edges near a flip.
+                if pass == 0 {
+                    self.prefetch_far_side(e as usize, &state);
+                }
                 if self.try_improving_flip(e, limit, &mut state) {
                     flips += 1;
                 }
@@ -203,23 +206,26 @@ impl<H: Height> GreedyMesher<'_, H> {
 
     /// Asks for what weighing edges ahead of `e` will read at random: the far triangle's
     /// corners and errors [`PREFETCH_AHEAD`] half-edges ahead, its far corner's point
-    /// and the near corners' points half as far (the passes wait on those loads).
+    /// and the near corners' points half as far (the passes wait on those loads), for
+    /// the edges that are weighed (those whose twin comes after them).
     #[inline(always)]
     fn prefetch_far_side(&self, e: usize, state: &FlipState) {
         let (corners, twins) = (&self.tin.corners, &self.tin.twins);
-        if let Some(&f) = twins.get(e + PREFETCH_AHEAD) {
-            if f != NONE {
-                prefetch(corners, prev(f) as usize);
-                prefetch(&state.errors, (f / 3) as usize);
-            }
+        let ahead = e + PREFETCH_AHEAD;
+        if ahead >= twins.len() {
+            return;
+        }
+        let f = twins[ahead] as usize;
+        if f != NONE as usize && f > ahead {
+            prefetch(corners, prev(f as u32) as usize);
+            prefetch(&state.errors, f / 3);
         }
         let near = e + PREFETCH_AHEAD / 2;
-        if let Some(&f) = twins.get(near) {
-            if f != NONE {
-                prefetch(&self.tin.points, corners[prev(f) as usize] as usize);
-            }
-            prefetch(&self.tin.points, corners[near] as usize);
+        let f = twins[near] as usize;
+        if f != NONE as usize && f > near {
+            prefetch(&self.tin.points, corners[prev(f as u32) as usize] as usize);
         }
+        prefetch(&self.tin.points, corners[near] as usize);
     }
 
     /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would.
