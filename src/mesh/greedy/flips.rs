@@ -6,14 +6,27 @@
 //! last weighed is not weighed again.
 
 use super::scan::{assess, assess_within, error_at, errors, errors_within, Height};
-use super::triangulation::{orient, Vertex, NONE};
+use super::triangulation::{orient, prefetch, prev, Vertex, NONE};
 use super::{GreedyMesher, GridMesh};
 
 /// Clock value of "never": edges not weighed yet, triangles not flipped yet.
 const NEVER: u32 = 0;
 
+/// [`FlipState::kinds`] bit: the triangle covers nodata (left out, never flipped).
+const VOID: u8 = 1;
+/// [`FlipState::kinds`] bit: the triangle held no sample but its corners when assessed.
+const EMPTY: u8 = 2;
+
+/// How many half-edges ahead the error-lowering passes prefetch (see
+/// [`GreedyMesher::prefetch_far_side`]).
+const PREFETCH_AHEAD: usize = 16;
+
 /// What the error-lowering passes remember between edges.
 struct FlipState {
+    /// Each triangle's [`VOID`] and [`EMPTY`] bits, from its assessment before the
+    /// passes (a byte a triangle: the passes' test of an edge's far triangle reads
+    /// this dense array instead of the assessments).
+    kinds: Vec<u8>,
     /// Each triangle's largest error and sum of squared errors (NaN: not read yet).
     errors: Vec<(f64, f64)>,
     /// Flips made so far: the clock.
@@ -91,16 +104,24 @@ impl<H: Height> GreedyMesher<'_, H> {
             self.covering_flips(tolerance);
         }
         let triangles = self.triangle_count();
+        let kind = |a: &super::scan::Assessment| {
+            u8::from(a.touches_void) * VOID + u8::from(a.candidate == u32::MAX) * EMPTY
+        };
         let mut state = FlipState {
+            kinds: self.assessments[..triangles].iter().map(kind).collect(),
             errors: vec![(f64::NAN, 0.0); triangles],
             clock: NEVER + 1,
             changed: vec![NEVER; triangles],
             weighed: vec![NEVER; 3 * triangles],
         };
         let mut flips = 0;
-        for _ in 0..passes {
+        for pass in 0..passes {
             let before = flips;
             for e in 0..self.tin.corners.len() as u32 {
+                // Later passes weigh only the edges near a flip.
+                if pass == 0 {
+                    self.prefetch_far_side(e as usize, &state);
+                }
                 if self.try_improving_flip(e, limit, &mut state) {
                     flips += 1;
                 }
@@ -183,6 +204,30 @@ impl<H: Height> GreedyMesher<'_, H> {
         true
     }
 
+    /// Asks for what weighing edges ahead of `e` will read at random: the far triangle's
+    /// corners and errors [`PREFETCH_AHEAD`] half-edges ahead, its far corner's point
+    /// and the near corners' points half as far (the passes wait on those loads), for
+    /// the edges that are weighed (those whose twin comes after them).
+    #[inline(always)]
+    fn prefetch_far_side(&self, e: usize, state: &FlipState) {
+        let (corners, twins) = (&self.tin.corners, &self.tin.twins);
+        let ahead = e + PREFETCH_AHEAD;
+        if ahead >= twins.len() {
+            return;
+        }
+        let f = twins[ahead] as usize;
+        if f != NONE as usize && f > ahead {
+            prefetch(corners, prev(f as u32) as usize);
+            prefetch(&state.errors, f / 3);
+        }
+        let near = e + PREFETCH_AHEAD / 2;
+        let f = twins[near] as usize;
+        if f != NONE as usize && f > near {
+            prefetch(&self.tin.points, corners[prev(f as u32) as usize] as usize);
+        }
+        prefetch(&self.tin.points, corners[near] as usize);
+    }
+
     /// Flips the edge of `e` when [`GreedyMesher::optimise_flips`] would.
     fn try_improving_flip(&mut self, e: u32, limit: Option<f64>, state: &mut FlipState) -> bool {
         let f = self.tin.twins[e as usize];
@@ -195,12 +240,12 @@ impl<H: Height> GreedyMesher<'_, H> {
             return false;
         }
         state.weighed[e as usize] = state.clock;
-        let (first, second) = (&self.assessments[t1], &self.assessments[t2]);
-        if first.touches_void || second.touches_void {
+        let (first, second) = (state.kinds[t1], state.kinds[t2]);
+        if (first | second) & VOID != 0 {
             return false;
         }
         let unflipped = state.changed[t1] == NEVER && state.changed[t2] == NEVER;
-        if unflipped && first.candidate == u32::MAX && second.candidate == u32::MAX {
+        if unflipped && first & second & EMPTY != 0 {
             // Neither triangle holds a sample but its corners (as assessed during
             // insertion): nor does the quadrilateral, and either diagonal is exact.
             return false;

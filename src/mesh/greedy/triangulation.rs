@@ -28,6 +28,20 @@ pub fn prev(e: u32) -> u32 {
     }
 }
 
+/// Hints the processor to bring `items[i]` into cache (nothing when out of range or
+/// not on x86-64): for reads at random that a loop knows ahead of time.
+#[inline(always)]
+pub fn prefetch<T>(items: &[T], i: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(item) = items.get(i) {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: a prefetch only hints the cache (it never faults), of an item in bounds.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>((item as *const T).cast()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (items, i);
+}
+
 /// Twice the signed area of `(a, b, c)`: positive when counter-clockwise.
 #[inline]
 pub fn orient(a: (i64, i64), b: (i64, i64), c: (i64, i64)) -> i64 {
