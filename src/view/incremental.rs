@@ -62,6 +62,9 @@ pub struct Incremental {
     /// The last parent evaluated under the current view: a parent's leaves come one after
     /// another, so it is evaluated once for all of them. Cleared when the view changes.
     last_parent: std::cell::Cell<Option<(Cell, NodeView)>>,
+    /// The last parent expiry computed under the current view ([`Incremental::parent_expiry`]
+    /// of a parent's leaves is the same for all of them). Cleared with `last_parent`.
+    last_parent_expiry: std::cell::Cell<Option<(Cell, f64)>>,
 }
 
 /// What one update changed.
@@ -250,6 +253,7 @@ impl Incremental {
             extent,
             turn_reach: f64::INFINITY,
             last_parent: std::cell::Cell::new(None),
+            last_parent_expiry: std::cell::Cell::new(None),
         };
         state.reset_expiry(terrain, view);
         state
@@ -261,7 +265,7 @@ impl Incremental {
     }
 
     fn reset_expiry(&mut self, terrain: &ViewTerrain<'_>, view: &View) {
-        self.last_parent.set(None);
+        self.forget_parent();
         self.turn_reach = self.typical_reach(terrain, view);
         let mut fresh = Leaves::default();
         for &cell in self.tree.leaves() {
@@ -296,7 +300,7 @@ impl Incremental {
     pub fn update(&mut self, terrain: &ViewTerrain<'_>, view: &View) -> UpdateStats {
         let motion = camera_motion(&self.last, view, &self.extent, self.turn_reach);
         self.last = *view;
-        self.last_parent.set(None);
+        self.forget_parent();
         if !motion.is_finite() {
             // A new projection: start again.
             let before = self.tree.leaves().len();
@@ -462,6 +466,12 @@ impl Incremental {
         terrain.evaluate(view, self.rule, cell.level, i, j)
     }
 
+    /// Clears the one-parent caches (the view or the motion travelled changed).
+    fn forget_parent(&self) {
+        self.last_parent.set(None);
+        self.last_parent_expiry.set(None);
+    }
+
     /// [`Incremental::evaluate`] of `parent`, through the one-node cache `last_parent`.
     fn evaluate_parent(&self, terrain: &ViewTerrain<'_>, view: &View, parent: Cell) -> NodeView {
         if let Some((cell, node)) = self.last_parent.get() {
@@ -497,8 +507,15 @@ impl Incremental {
             return f64::INFINITY;
         }
         let parent = parent_of(cell);
+        if let Some((cached, until)) = self.last_parent_expiry.get() {
+            if cached == parent {
+                return until;
+            }
+        }
         let node = self.evaluate_parent(terrain, view, parent);
-        self.until(self.stay_split(terrain, parent, node), &node)
+        let until = self.until(self.stay_split(terrain, parent, node), &node);
+        self.last_parent_expiry.set(Some((parent, until)));
+        until
     }
 
     /// The accumulated motion up to which `node`, whose quantities may move by `slack`
