@@ -255,7 +255,7 @@ pub(super) fn dominant_contexts<S: Side>(
 
 /// Known magnitudes of the 8 neighbours of coefficient `at`, the horizontal and vertical
 /// ones counted twice.
-#[inline]
+#[inline(always)]
 fn neighbour_sum<K: Known + ?Sized>(grid: &FlagGrid, known: &K, at: At) -> u64 {
     let w = grid.width;
     let i = at.index;

@@ -34,6 +34,22 @@ impl Known for [i32] {
     fn at(&self, i: usize) -> i32 {
         self[i]
     }
+
+    /// Three rows of three read as slices: three bounds checks rather than eight.
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        let (up, row, down) = (
+            &self[i - w - 1..i - w + 2],
+            &self[i - 1..i + 2],
+            &self[i + w - 1..i + w + 2],
+        );
+        let m = |x: i32| u64::from(x.unsigned_abs());
+        2 * (m(row[0]) + m(row[2]) + m(up[1]) + m(down[1]))
+            + m(up[0])
+            + m(up[2])
+            + m(down[0])
+            + m(down[2])
+    }
 }
 
 impl Known for Vec<i32> {
