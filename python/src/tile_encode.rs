@@ -228,7 +228,7 @@ pub fn write_tiled(
         .map(|(bytes, values)| tile_of(values, bytes.as_bytes().to_vec()))
         .collect::<PyResult<Vec<EncodedTile>>>()?;
     let (georef, crs_wkt) = georef_of(geotransform, epsg, crs_wkt)?;
-    let (first, _) = Header::parse(&tiles[0].bytes).map_err(codec_error)?;
+    let (first, _) = Header::parse_tile(&tiles[0].bytes).map_err(codec_error)?;
     let info = RasterInfo {
         width,
         height,
