@@ -224,8 +224,10 @@ pub fn measure(
     let samples = (w * h) as f64;
     let distortion = |other: &Raster| compare(&raster, other).map_err(|e| codec_err(e.to_string()));
 
-    // Lossless, timed.
-    let lossless_options = EncodeOptions::new(Quality::Lossless, None);
+    // Lossless, timed on one thread (the speed table's heading; tiled DEMs would
+    // otherwise code their tiles on every core).
+    let lossless_options = EncodeOptions::new(Quality::Lossless, None).with_threads(1);
+    let one_thread = DecodeOptions::default().with_threads(1);
     let mut encode_times = Vec::new();
     let mut decode_times = Vec::new();
     let mut lossless = None;
@@ -235,8 +237,7 @@ pub fn measure(
         let encoded = encode(&raster, &lossless_options).map_err(|e| codec_err(e.to_string()))?;
         encode_times.push(start.elapsed().as_secs_f64());
         let start = Instant::now();
-        let (decoded, peak) =
-            crate::memory::measure(|| decode(&encoded.bytes, &DecodeOptions::default()));
+        let (decoded, peak) = crate::memory::measure(|| decode(&encoded.bytes, &one_thread));
         decode_times.push(start.elapsed().as_secs_f64());
         let decoded = decoded.map_err(|e| codec_err(e.to_string()))?;
         if !distortion(&decoded.raster)?.identical {
@@ -248,7 +249,8 @@ pub fn measure(
     let lossless = lossless.expect("at least one run");
 
     // 9/7 at 1 bpp, timed (OpenJPEG's -r 16 runs are the comparison).
-    let mut at_one = EncodeOptions::new(Quality::Lossless, Some((samples / 8.0) as u64));
+    let mut at_one =
+        EncodeOptions::new(Quality::Lossless, Some((samples / 8.0) as u64)).with_threads(1);
     at_one.wavelet = Wavelet::Cdf97;
     let mut lossy_encode_times = Vec::new();
     let mut lossy_decode_times = Vec::new();
@@ -257,7 +259,7 @@ pub fn measure(
         let encoded = encode(&raster, &at_one).map_err(|e| codec_err(e.to_string()))?;
         lossy_encode_times.push(start.elapsed().as_secs_f64());
         let start = Instant::now();
-        decode(&encoded.bytes, &DecodeOptions::default()).map_err(|e| codec_err(e.to_string()))?;
+        decode(&encoded.bytes, &one_thread).map_err(|e| codec_err(e.to_string()))?;
         lossy_decode_times.push(start.elapsed().as_secs_f64());
     }
 
