@@ -76,7 +76,7 @@ pub(super) fn write(header: &Header) -> Vec<u8> {
 }
 
 /// Serialises a single stream's header in the tile layout (the tiles of a tiled file
-/// under flag 13): [`write`]'s fields without the magic, the version and the ladder
+/// under flag 13): [`write()`]'s fields without the magic, the version and the ladder
 /// length (a tile has no ladder), flag 10 clear and no valid range (the tiled file's
 /// header has it), and no georeferencing or metadata.
 pub(super) fn write_tile(header: &Header) -> Vec<u8> {
