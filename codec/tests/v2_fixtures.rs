@@ -131,7 +131,7 @@ fn new_files_say_coder_4_and_decode_exactly() {
 /// before, 1.633 after.)
 #[test]
 fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
-    for (name, budget, decoded) in [
+    let cases = [
         ("tiled_i16_lossless", None, "tiled_i16_lossless"),
         (
             "tiled_i16_lossless",
@@ -139,14 +139,21 @@ fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
             "tiled_i16_lossless.prefix1500",
         ),
         ("tiled_i16_97_2bpp", None, "tiled_i16_97_2bpp"),
-    ] {
+    ];
+    tiled_fixtures_decode(&cases, (40, 45, 0));
+}
+
+/// Each tiled fixture `(file, budget, decoded)` decodes at that budget to the recorded
+/// samples, its tiles and overlap as given.
+fn tiled_fixtures_decode(cases: &[(&str, Option<u64>, &str)], grid: (u32, u32, u32)) {
+    for &(name, budget, decoded) in cases {
         let file = fixture(&format!("{name}.ezw"));
         let options = DecodeOptions::default().with_max_bytes(budget);
         let out = decode(&file, &options).unwrap();
         let tiling = out.header.tiling.expect("a tiled file");
         assert_eq!(
             (tiling.tile_width, tiling.tile_height, tiling.overlap),
-            (40, 45, 0)
+            grid
         );
         assert!(out.damage.is_none(), "{name} damage");
         assert_eq!(
@@ -187,7 +194,7 @@ fn f32_fixtures_of_the_range_in_header_layout_decode_to_their_recorded_samples()
 /// a 9/7 file cut at 2 bpp.
 #[test]
 fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
-    for (name, budget, decoded) in [
+    let cases = [
         ("tiled_overlap_i16_lossless", None, "tiled_i16_lossless"),
         (
             "tiled_overlap_i16_lossless",
@@ -199,20 +206,6 @@ fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
             None,
             "tiled_overlap_i16_97_2bpp",
         ),
-    ] {
-        let file = fixture(&format!("{name}.ezw"));
-        let options = DecodeOptions::default().with_max_bytes(budget);
-        let out = decode(&file, &options).unwrap();
-        let tiling = out.header.tiling.expect("a tiled file");
-        assert_eq!(
-            (tiling.tile_width, tiling.tile_height, tiling.overlap),
-            (40, 30, 2)
-        );
-        assert!(out.damage.is_none(), "{name} damage");
-        assert_eq!(
-            raw(&out.raster.samples),
-            fixture(&format!("{decoded}.decoded")),
-            "{name} at {budget:?}"
-        );
-    }
+    ];
+    tiled_fixtures_decode(&cases, (40, 30, 2));
 }

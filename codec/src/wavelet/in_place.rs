@@ -204,19 +204,19 @@ where
                 rows.load(nl + t, h);
                 h.iter_mut().for_each(|v| *v *= hi_scale);
             }
-            lift_update(&mut ring.lo, &ring.hi, t, (up(t), t.min(nh - 1)), delta);
+            lift_row(&mut ring.lo, &ring.hi, t, (up(t), t.min(nh - 1)), delta);
         }
         if let Some(k) = t.checked_sub(1) {
             if k < nh {
-                lift_predict(&mut ring.hi, &ring.lo, k, (k, (k + 1).min(nl - 1)), gamma);
+                lift_row(&mut ring.hi, &ring.lo, k, (k, (k + 1).min(nl - 1)), gamma);
             }
             if k < nl {
-                lift_update(&mut ring.lo, &ring.hi, k, (up(k), k.min(nh - 1)), beta);
+                lift_row(&mut ring.lo, &ring.hi, k, (up(k), k.min(nh - 1)), beta);
             }
         }
         if let Some(k) = t.checked_sub(2) {
             if k < nh {
-                lift_predict(&mut ring.hi, &ring.lo, k, (k, (k + 1).min(nl - 1)), alpha);
+                lift_row(&mut ring.hi, &ring.lo, k, (k, (k + 1).min(nl - 1)), alpha);
             }
             if k < nl {
                 rows.emit(2 * k, &mut ring.lo[k % 3]);
@@ -228,32 +228,19 @@ where
     }
 }
 
-/// `lo[k] = lo[k] − c · (hi[a] + hi[b])` over a row (the update step of [`super::update`]).
-fn lift_update(
-    lo: &mut [Vec<f64>; 3],
-    hi: &[Vec<f64>; 3],
+/// `rows[k] −= c · (others[a] + others[b])` over a row, in the three-row rings: the
+/// update step of [`super::update`] (`rows` the low-pass ring, `others` the high-pass
+/// one) or the predict step of [`super::predict`] (the other way round).
+fn lift_row(
+    rows: &mut [Vec<f64>; 3],
+    others: &[Vec<f64>; 3],
     k: usize,
     (a, b): (usize, usize),
     c: f64,
 ) {
-    let (a, b) = (&hi[a % 3], &hi[b % 3]);
-    for ((l, &x), &y) in lo[k % 3].iter_mut().zip(a).zip(b) {
-        *l -= c * (x + y);
-    }
-}
-
-/// `hi[k] = hi[k] − c · (lo[a] + lo[b])` over a row (the predict step of
-/// [`super::predict`]).
-fn lift_predict(
-    hi: &mut [Vec<f64>; 3],
-    lo: &[Vec<f64>; 3],
-    k: usize,
-    (a, b): (usize, usize),
-    c: f64,
-) {
-    let (a, b) = (&lo[a % 3], &lo[b % 3]);
-    for ((h, &x), &y) in hi[k % 3].iter_mut().zip(a).zip(b) {
-        *h -= c * (x + y);
+    let (a, b) = (&others[a % 3], &others[b % 3]);
+    for ((r, &x), &y) in rows[k % 3].iter_mut().zip(a).zip(b) {
+        *r -= c * (x + y);
     }
 }
 
