@@ -27,7 +27,8 @@ fn open(path: &Path) -> PyResult<FileSource> {
 /// (samples each tile's stream codes beyond the tile on each side, within the raster),
 /// `sample_type`, `nodata`, `compact_tiles` (the tiles' streams have the tile layout, as
 /// `decode_tile` needs to know), and per tile in grid order `offsets` (file byte where its
-/// stream starts) and `lengths` (bytes of it the decode reads).
+/// stream starts), `lengths` (bytes of it the decode reads) and `passes` (its index
+/// entry's prefix length and error per pass, for `decode_tile`).
 #[pyfunction]
 #[pyo3(signature = (path, *, bpp=None, nbytes=None))]
 pub fn tiled_plan<'py>(
@@ -64,6 +65,8 @@ pub fn tiled_plan<'py>(
     out.set_item("compact_tiles", layout.compact_tiles())?;
     out.set_item("offsets", &layout.offsets)?;
     out.set_item("lengths", lengths)?;
+    let passes: Vec<&[(u64, f64)]> = layout.entries.iter().map(|e| &e.passes[..]).collect();
+    out.set_item("passes", passes)?;
     Ok(out)
 }
 
@@ -71,11 +74,13 @@ pub fn tiled_plan<'py>(
 /// range read), a `width × height` tile whose voids are `nodata` (the file's), as
 /// `decode` decodes it; `(samples, valid)`. The stream codes the tile and its overlap:
 /// `coded = (x, y, coded_width, coded_height)` says where the tile lies in what it codes
-/// (the tile alone when not given); `compact_tiles` is the plan's. Damage, a tile cut
-/// short by the end of the file, or a tile of another size raise `CodecError`.
+/// (the tile alone when not given); `compact_tiles` and the tile's `passes` are the
+/// plan's (without them a 9/7 tile decodes in more memory, to the same samples).
+/// Damage, a tile cut short by the end of the file, or a tile of another size raise
+/// `CodecError`.
 #[pyfunction]
 #[pyo3(signature = (path, offset, length, *, width, height, nodata=None, coded=None,
-    compact_tiles=false))]
+    compact_tiles=false, passes=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 pub fn decode_tile<'py>(
     py: Python<'py>,
@@ -87,6 +92,7 @@ pub fn decode_tile<'py>(
     nodata: Option<f64>,
     coded: Option<(usize, usize, usize, usize)>,
     compact_tiles: bool,
+    passes: Vec<(u64, f64)>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let (x, y, coded_width, coded_height) = coded.unwrap_or((0, 0, width, height));
     if x + width > coded_width || y + height > coded_height {
@@ -103,7 +109,7 @@ pub fn decode_tile<'py>(
     };
     let options = DecodeOptions::default().with_strict(true).with_threads(1);
     let decoded = py
-        .detach(|| wavemesh_codec::tiles::decode_tile(&bytes, compact_tiles, &[], &options))
+        .detach(|| wavemesh_codec::tiles::decode_tile(&bytes, compact_tiles, &passes, &options))
         .map_err(at)?;
     let raster = &decoded.raster;
     if (raster.width, raster.height) != (coded_width, coded_height) {

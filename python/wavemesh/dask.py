@@ -230,6 +230,7 @@ class _TileReader:
         self.compact_tiles = plan["compact_tiles"]
         self.offsets = plan["offsets"]
         self.lengths = plan["lengths"]
+        self.passes = plan["passes"]
         self.token = (path, os.stat(path).st_mtime_ns, self.offsets, self.lengths)
 
     def __dask_tokenize__(self):
@@ -265,6 +266,7 @@ class _TileReader:
                 coded_rows.stop - coded_rows.start,
             ),
             compact_tiles=self.compact_tiles,
+            passes=self.passes[k],
         )
         tile = wavemesh._masked(samples, valid, self.nodata)
         if not wavemesh._fill_value_fits(self.nodata, tile.dtype):
