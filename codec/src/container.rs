@@ -209,6 +209,19 @@ impl Header {
 
     /// Parses and validates a header at the start of `data`; returns it and its length.
     pub fn parse(data: &[u8]) -> Result<(Header, usize), CodecError> {
+        Header::parse_with_ladder(data, |start, len| {
+            data.get(start..start.checked_add(len)?).map(<[u8]>::to_vec)
+        })
+    }
+
+    /// [`Header::parse`] of `data`, a prefix of a file, with the ladder's framed bytes
+    /// fetched by `ladder(start, len)` from wherever the whole file is (a decode cut
+    /// short keeps the ladder's pass records that way). A ladder `ladder` cannot give,
+    /// or a damaged one, is simply not shown.
+    pub(crate) fn parse_with_ladder(
+        data: &[u8],
+        ladder: impl FnOnce(usize, usize) -> Option<Vec<u8>>,
+    ) -> Result<(Header, usize), CodecError> {
         if data.len() < MAGIC.len() {
             return Err(if MAGIC.starts_with(data) {
                 CodecError::TruncatedHeader("file shorter than the magic bytes")
@@ -261,9 +274,9 @@ impl Header {
             .saturating_add(header.residual_len as u64);
         if let Some(framed) = usize::try_from(ladder_start)
             .ok()
-            .and_then(|start| data.get(start..start.checked_add(ladder_len)?))
+            .and_then(|start| ladder(start, ladder_len))
         {
-            let ladder = unframe(framed, ladder_len);
+            let ladder = unframe(&framed, ladder_len);
             let parsed = ladder
                 .complete
                 .then(|| parse_ladder(&ladder.bytes, header.top_plane, range_in_ladder))

@@ -52,7 +52,8 @@ mod training;
 use contexts::{dominant_contexts, refinement_context, sign_context, At};
 pub use contexts::{Coder, ContextChoice, Contexts};
 use std::marker::PhantomData;
-pub use store::{Known, Narrow, Scaled, Store};
+pub(crate) use store::is_escape;
+pub use store::{Known, Narrow, Store};
 #[cfg(feature = "research")]
 pub use training::{tally_priors, PriorTally, PRIOR_WINDOW};
 
@@ -1185,10 +1186,11 @@ impl<S: Store, V: View<S>> Side for DecoderSide<'_, S, V> {
 }
 
 /// The highest plane of the passes a decoder's scans may read through
-/// [`Store::saturated`]: there an escaped magnitude (at least 32767, seen as 32767 or
-/// 32768) saturates every context it takes part in, as the true one does: the activity and
-/// refinement levels of `sum >> p ≥ 64` (32767 >> 8 = 127), the parent level of
-/// `m >> p >> 2 ≥ 1`, the refinement age of `m >> (p + 1) ≥ 4`.
+/// [`Store::saturated`] of a store in units of 1 (in units of 2^s, this plane + s): there
+/// an escaped magnitude (at least 32767 units, seen as 32767 or 32768) saturates every
+/// context it takes part in, as the true one does: the activity and refinement levels of
+/// `sum >> p ≥ 64` (32767 >> 8 = 127), the parent level of `m >> p >> 2 ≥ 1`, the
+/// refinement age of `m >> (p + 1) ≥ 4`.
 pub const SATURATED_PLANE: u32 = 8;
 
 /// A decode's passes: what they share, and how far they went.
@@ -1315,10 +1317,11 @@ impl<S: Store> Decoder<S> {
             passes_completed: 0,
             stop: None,
         };
+        let saturated_plane = values.saturated_plane();
         let mut side = DecoderSide::<S, Checked>::new(source, values);
         let top = top_plane.map_or(-1, |t| t as i64);
-        let saturated_top = top.min(i64::from(SATURATED_PLANE));
-        // The passes above SATURATED_PLANE, then the others.
+        let saturated_top = top.min(i64::from(saturated_plane));
+        // The passes above the store's saturated plane, then the others.
         let mut going = run.passes(&mut side, (saturated_top + 1..=top).rev())?;
         let mut side = side.saturated();
         if going {

@@ -84,6 +84,11 @@ pub trait Store: Known + Send + Sized {
     }
     /// The store as [`Store::Saturated`].
     fn saturated(&self) -> &Self::Saturated;
+    /// The highest plane of the passes whose scans may read the store through
+    /// [`Store::saturated`] (every plane when that reads every value as it is).
+    fn saturated_plane(&self) -> u32 {
+        u32::MAX
+    }
     /// Whether the store holds more than it was meant to (the decode gives up).
     fn overflowed(&self) -> bool;
 }
@@ -118,89 +123,135 @@ const fn escape_slot(v: i32) -> i16 {
 
 /// Whether `v` is an escaped coefficient's slot (with `ESCAPES`).
 #[inline(always)]
-fn is_escape(v: i16) -> bool {
+pub(crate) fn is_escape(v: i16) -> bool {
     (v as u16).wrapping_sub(i16::MAX as u16) <= 1
 }
 
-/// Coefficients as `i16`. With `ESCAPES`, each one outside `−32767 ..= 32766` is escaped:
-/// its slot holds `escape_slot` and its value is in a side table, which may hold about
-/// one coefficient in 64 (the coarse bands of a raster spanning the whole 16-bit range;
-/// [`max_spilled`]); past that the store has [`Store::overflowed`]. Without, reading a
-/// coefficient costs no test, and one that does not fit overflows the store.
+/// `i16` slots in units of 2^`shift`, read as they are: an escaped slot (see [`Narrow`])
+/// reads as its sign's extreme times 2^`shift`.
+#[derive(Debug, Clone, Default)]
+pub struct Slots {
+    values: Vec<i16>,
+    shift: u32,
+}
+
+impl Known for Slots {
+    #[inline(always)]
+    fn at(&self, i: usize) -> i32 {
+        i32::from(self.values[i]) << self.shift
+    }
+
+    /// Three rows of three read as slices: three bounds checks rather than eight.
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        let v = &self.values;
+        let (up, row, down) = (
+            &v[i - w - 1..i - w + 2],
+            &v[i - 1..i + 2],
+            &v[i + w - 1..i + w + 2],
+        );
+        let m = |x: i16| u64::from(x.unsigned_abs());
+        let sum = 2 * (m(row[0]) + m(row[2]) + m(up[1]) + m(down[1]))
+            + m(up[0])
+            + m(up[2])
+            + m(down[0])
+            + m(down[2]);
+        sum << self.shift
+    }
+}
+
+/// Coefficients as `i16` slots in units of 2^`shift` (1 for the integer 5/3; for a 9/7
+/// stream the lowest plane its decode reads): a value with a bit below plane `shift`
+/// overflows the store. With `ESCAPES`, each value whose slot would be outside
+/// `−32767 ..= 32766` is escaped: its slot holds `escape_slot` and its value is in a side
+/// table, which may hold about one coefficient in 64 (the coarse bands; [`max_spilled`]);
+/// past that the store has [`Store::overflowed`]. Without, reading a coefficient costs no
+/// test, and one that does not fit overflows the store.
 #[derive(Debug, Clone, Default)]
 pub struct Narrow<const ESCAPES: bool = true> {
-    values: Vec<i16>,
+    slots: Slots,
     wide: BTreeMap<usize, i32>,
-    /// Whether a value did not fit (without `ESCAPES`).
+    /// Whether a value did not fit (without `ESCAPES`, or below plane `shift`).
     outgrown: bool,
 }
 
 impl<const ESCAPES: bool> Known for Narrow<ESCAPES> {
     #[inline(always)]
     fn at(&self, i: usize) -> i32 {
-        let v = self.values[i];
+        let v = self.slots.values[i];
         if ESCAPES && is_escape(v) {
             self.escaped(i)
         } else {
-            i32::from(v)
+            i32::from(v) << self.slots.shift
         }
     }
 
     /// One test for an escape among the 8 neighbours rather than 8.
     #[inline(always)]
     fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        let v = &self.values;
+        let v = &self.slots.values;
         let (up, down) = (&v[i - w - 1..i - w + 2], &v[i + w - 1..i + w + 2]);
         let (left, right) = (v[i - 1], v[i + 1]);
         let escaped = |row: &[i16]| row.iter().fold(false, |e, &x| e | is_escape(x));
         if ESCAPES && (escaped(up) | escaped(down) | is_escape(left) | is_escape(right)) {
             return self.escaped_sum(i, w);
         }
-        let m = |x: i16| u64::from(x.unsigned_abs());
-        2 * (m(left) + m(right) + m(up[1]) + m(down[1]))
-            + m(up[0])
-            + m(up[2])
-            + m(down[0])
-            + m(down[2])
+        self.slots.interior_sum(i, w)
     }
 }
 
 impl<const ESCAPES: bool> Store for Narrow<ESCAPES> {
-    type Saturated = [i16];
+    type Saturated = Slots;
+    /// In units of 1: [`Narrow::with_shift`] gives others.
     fn zeroed(n: usize) -> Self {
-        Narrow {
-            values: vec![0; n],
-            wide: BTreeMap::new(),
-            outgrown: false,
-        }
+        Narrow::with_shift(n, 0)
     }
     #[inline(always)]
     fn set(&mut self, i: usize, v: i32) {
-        match i16::try_from(v) {
-            Ok(narrow) if !ESCAPES => self.values[i] = narrow,
-            Ok(narrow) if !is_escape(narrow) && !is_escape(self.values[i]) => {
-                self.values[i] = narrow
-            }
+        let shift = self.slots.shift;
+        if (v >> shift) << shift != v {
+            self.outgrown = true;
+            return;
+        }
+        let values = &mut self.slots.values;
+        match i16::try_from(v >> shift) {
+            Ok(narrow) if !ESCAPES => values[i] = narrow,
+            Ok(narrow) if !is_escape(narrow) && !is_escape(values[i]) => values[i] = narrow,
             _ if !ESCAPES => self.outgrown = true,
             _ => self.set_escaped(i, v),
         }
     }
     #[inline(always)]
-    fn saturated(&self) -> &[i16] {
-        &self.values
+    fn saturated(&self) -> &Slots {
+        &self.slots
+    }
+    fn saturated_plane(&self) -> u32 {
+        super::SATURATED_PLANE + self.slots.shift
     }
     fn overflowed(&self) -> bool {
-        self.outgrown || self.wide.len() > max_spilled(self.values.len())
+        self.outgrown || self.wide.len() > max_spilled(self.slots.values.len())
     }
 }
 
 impl<const ESCAPES: bool> Narrow<ESCAPES> {
+    /// `n` coefficients, all 0, in units of 2^`shift`.
+    pub fn with_shift(n: usize, shift: u32) -> Self {
+        Narrow {
+            slots: Slots {
+                values: vec![0; n],
+                shift,
+            },
+            wide: BTreeMap::new(),
+            outgrown: false,
+        }
+    }
+
     /// The value of escaped coefficient `i`.
     #[cold]
     #[inline(never)]
     fn escaped(&self, i: usize) -> i32 {
-        let slot = self.values[i];
-        self.wide.get(&i).copied().unwrap_or(i32::from(slot))
+        let slot = self.slots.values[i];
+        (self.wide.get(&i).copied()).unwrap_or(i32::from(slot) << self.slots.shift)
     }
 
     /// [`Known::interior_sum`] with an escaped neighbour.
@@ -214,14 +265,14 @@ impl<const ESCAPES: bool> Narrow<ESCAPES> {
     #[cold]
     #[inline(never)]
     fn set_escaped(&mut self, i: usize, v: i32) {
-        match i16::try_from(v) {
+        match i16::try_from(v >> self.slots.shift) {
             Ok(narrow) if !is_escape(narrow) => {
                 self.wide.remove(&i);
-                self.values[i] = narrow;
+                self.slots.values[i] = narrow;
             }
             _ => {
                 self.wide.insert(i, v);
-                self.values[i] = escape_slot(v);
+                self.slots.values[i] = escape_slot(v);
             }
         }
     }
@@ -232,85 +283,16 @@ impl<const ESCAPES: bool> Narrow<ESCAPES> {
         self.wide.keys().copied()
     }
 
-    /// The `i16` values and the escaped ones by index.
-    pub(crate) fn into_parts(self) -> (Vec<i16>, BTreeMap<usize, i32>) {
-        (self.values, self.wide)
-    }
-}
-
-/// Coefficients as `i16` in units of 2^`shift`: every value known down to plane
-/// `shift` of magnitude below 2^(15 + `shift`), half the memory of `i32` for a 9/7
-/// stream decoded only through its top 15 planes. A value it cannot hold (a finer plane,
-/// a larger magnitude) overflows the store.
-#[derive(Debug, Clone, Default)]
-pub struct Scaled {
-    values: Vec<i16>,
-    shift: u32,
-    outgrown: bool,
-}
-
-impl Scaled {
-    /// The plane below which a stream whose first pass is `top_plane` is not held (no
-    /// coefficient has a plane above [`super::MAX_COEFFICIENT_PLANE`]).
-    pub fn floor(top_plane: u32) -> u32 {
-        top_plane
-            .min(super::MAX_COEFFICIENT_PLANE)
-            .saturating_sub(14)
-    }
-
-    /// `n` coefficients, all 0, in units of 2^`shift`.
-    pub fn with_shift(n: usize, shift: u32) -> Scaled {
-        Scaled {
-            values: vec![0; n],
-            shift,
-            outgrown: false,
-        }
-    }
-
-    /// The slots (each value over 2^shift) and the shift.
-    pub(crate) fn into_parts(self) -> (Vec<i16>, u32) {
-        (self.values, self.shift)
-    }
-}
-
-impl Known for Scaled {
-    #[inline(always)]
-    fn at(&self, i: usize) -> i32 {
-        i32::from(self.values[i]) << self.shift
-    }
-
-    #[inline(always)]
-    fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        neighbour_magnitudes(&self.values[..], i, w) << self.shift
-    }
-}
-
-impl Store for Scaled {
-    type Saturated = Self;
-    /// In units of 1: [`Scaled::with_shift`] gives others.
-    fn zeroed(n: usize) -> Self {
-        Scaled::with_shift(n, 0)
-    }
-    #[inline(always)]
-    fn set(&mut self, i: usize, v: i32) {
-        let slot = v >> self.shift;
-        match i16::try_from(slot) {
-            Ok(slot) if i32::from(slot) << self.shift == v => self.values[i] = slot,
-            _ => self.outgrown = true,
-        }
-    }
-    #[inline(always)]
-    fn saturated(&self) -> &Self {
-        self
-    }
-    fn overflowed(&self) -> bool {
-        self.outgrown
+    /// The slots, their shift and the escaped values by index.
+    pub(crate) fn into_parts(self) -> (Vec<i16>, u32, BTreeMap<usize, i32>) {
+        (self.slots.values, self.slots.shift, self.wide)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ezw::SATURATED_PLANE;
 
     #[test]
     fn narrow_store_keeps_every_value_and_escapes_only_the_wide_ones() {
@@ -342,7 +324,7 @@ mod tests {
         for (i, v) in [(1, 1), (2, 2), (3, 3), (5, -32766), (6, 6), (7, 7)] {
             store.set(i, v);
         }
-        let (values, wide) = store.into_parts();
+        let (values, _, wide) = store.into_parts();
         assert_eq!(values, [0, 1, 2, 3, 12, -32766, 6, 7]);
         assert!(wide.is_empty());
     }
@@ -370,9 +352,9 @@ mod tests {
     }
 
     #[test]
-    fn scaled_store_holds_its_planes_and_overflows_outside_them() {
+    fn a_store_without_escapes_holds_its_planes_and_overflows_outside_them() {
         // A 3×3 array: the left and right neighbours of the middle one.
-        let mut store = Scaled::with_shift(9, 15);
+        let mut store = Narrow::<false>::with_shift(9, 15);
         store.set(3, -(32767 << 15));
         store.set(5, 3 << 20);
         store.grow(5, 15);
@@ -384,11 +366,37 @@ mod tests {
         assert!(!store.overflowed());
         store.set(2, 1 << 14);
         assert!(store.overflowed());
-        let mut store = Scaled::with_shift(2, 15);
+        let mut store = Narrow::<false>::with_shift(2, 15);
         store.set(0, 1 << 30);
         assert!(store.overflowed());
-        assert_eq!(Scaled::floor(29), 15);
-        assert_eq!(Scaled::floor(9), 0);
-        assert_eq!(Scaled::floor(62), 16);
+    }
+
+    #[test]
+    fn a_shifted_store_escapes_the_slots_that_do_not_fit() {
+        let mut store = Narrow::<true>::with_shift(9, 4);
+        store.set(3, -(32767 << 4));
+        store.set(5, 40000 << 4);
+        store.set(1, 7 << 4);
+        store.grow(5, 4);
+        assert_eq!(
+            (store.at(1), store.at(3), store.at(5)),
+            (7 << 4, -(32767 << 4), (40001 << 4))
+        );
+        assert_eq!(store.escaped_indices().collect::<Vec<_>>(), [5]);
+        // Saturated, the escaped one reads as the sign's extreme in units of 16.
+        assert_eq!(store.saturated().at(5), 32767 << 4);
+        assert_eq!(store.saturated_plane(), SATURATED_PLANE + 4);
+        assert_eq!(
+            store.interior_sum(4, 3),
+            (2 * 7 + 2 * 32767 + 2 * 40001) << 4
+        );
+        assert!(!store.overflowed());
+        store.set(5, 3 << 4);
+        assert_eq!(store.escaped_indices().count(), 0);
+        let (slots, shift, wide) = store.into_parts();
+        assert_eq!((slots[5], shift, wide.len()), (3, 4, 0));
+        let mut store = Narrow::<true>::with_shift(9, 4);
+        store.set(0, 1 << 3);
+        assert!(store.overflowed(), "a bit below the store's planes");
     }
 }

@@ -5,7 +5,9 @@ use crate::container::{physical_offset, Header, StreamSections, CHUNK};
 use crate::corrections::apply_corrections;
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
-use crate::ezw::{CoefficientLayout, Decoder, Known, Narrow, Scaled, Store};
+use crate::ezw::{
+    is_escape, CoefficientLayout, Decoder, Known, Narrow, Store, MAX_COEFFICIENT_PLANE,
+};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
 use crate::quantize::{
@@ -144,7 +146,14 @@ fn decode_single(
     let data = source
         .read_at(0, options.max_bytes.map_or(usize::MAX, |b| b as usize))
         .map_err(|e| CodecError::Read(e.to_string()))?;
-    decode(&data, options)
+    let (header, header_len) = Header::parse_with_ladder(&data, |start, len| {
+        let bytes = match data.get(start..start.checked_add(len)?) {
+            Some(held) => held.to_vec(),
+            None => source.read_at(start as u64, len).ok()?,
+        };
+        (bytes.len() == len).then_some(bytes)
+    })?;
+    decode_parsed(&data, header, header_len, options)
 }
 
 /// `decoded` cut to `window`.
@@ -232,11 +241,17 @@ pub fn decode(mut data: &[u8], options: &DecodeOptions) -> Result<Decoded, Codec
         }
         return decode_tiled_window(&mut data, &layout, None, options);
     }
+    let whole = data;
     let data = match options.max_bytes {
         Some(limit) if (limit as usize) < data.len() => &data[..limit as usize],
         _ => data,
     };
-    let (header, header_len) = Header::parse(data)?;
+    // The header from the prefix; its ladder from the whole data, past the cut.
+    let (header, header_len) = Header::parse_with_ladder(data, |start, len| {
+        whole
+            .get(start..start.checked_add(len)?)
+            .map(<[u8]>::to_vec)
+    })?;
     decode_parsed(data, header, header_len, options)
 }
 
@@ -391,9 +406,11 @@ fn narrow_reconstruction(
     narrow_samples(decoder, header, mask)
 }
 
-/// The 9/7 decode of a stream of 1- or 2-byte integer samples whose decode stays above
-/// plane [`Scaled::floor`] (its ladder says so): the coefficients in `i16`
-/// ([`Scaled`]), dequantised as the inverse reads them and the samples written over them
+/// The 9/7 decode of a stream of 1- or 2-byte integer samples whose ladder shows the
+/// lowest plane its decode reads: the coefficients as `i16` slots in units of that plane
+/// or above ([`Narrow`]: with no slot escaped when every magnitude fits, else with the
+/// large ones escaped: those significant in the passes above the slots' 15 planes, so a
+/// store that overflows does so in the first, cheap passes), dequantised as the inverse reads them and the samples written over them
 /// ([`wavelet::inverse_97_i16`]), about 1.6 times the samples' bytes where the `i32`
 /// decode holds 2 and more. The samples are those of [`reconstruct`]. `None` for that
 /// decode.
@@ -404,23 +421,45 @@ fn scaled_reconstruction(
     options: &DecodeOptions,
     mask: Option<&BitSlice<u64, Lsb0>>,
 ) -> Option<Reconstruction> {
-    let top = header.top_plane.map(u32::from)?;
-    let floor = Scaled::floor(top);
-    if !stays_above(
-        header,
-        sections.payload_check.data_len as u64,
-        options,
-        floor,
-    ) {
-        return None;
-    }
-    let values = Scaled::with_shift(layout.len(), floor);
+    let available = sections.payload_check.data_len as u64;
+    let (shift, escapes) = scaled_slots(header, available, options)?;
     let source = payload_source(sections, payload_complete);
-    let passes = (Some(top), options.max_passes);
+    let passes = (header.top_plane.map(u32::from), options.max_passes);
+    if escapes {
+        let values = Narrow::<true>::with_shift(layout.len(), shift);
+        let decoder = Decoder::try_run_into(values, layout, header.coder, source, passes)?;
+        return Some(scaled_samples(decoder, header, mask));
+    }
+    let values = Narrow::<false>::with_shift(layout.len(), shift);
     let decoder = Decoder::try_run_into(values, layout, header.coder, source, passes)?;
+    Some(scaled_samples(decoder, header, mask))
+}
+
+/// The slots of a [`scaled_reconstruction`] of `header`'s stream with `available`
+/// payload bytes: their shift (the lowest plane the decode reads, or that of the 15 top
+/// planes when it reads no deeper), and whether some may be escaped (when it reads
+/// deeper). `None` when it is not known how deep it reads.
+fn scaled_slots(header: &Header, available: u64, options: &DecodeOptions) -> Option<(u32, bool)> {
+    let top = header.top_plane.map(u32::from)?;
+    let floor = top.min(MAX_COEFFICIENT_PLANE).saturating_sub(14);
+    // Without a ladder, only a stream of at most 15 planes is known to fit.
+    let lowest = lowest_plane_read(header, available, options).or((floor == 0).then_some(0))?;
+    Some(if lowest < floor {
+        (lowest, true)
+    } else {
+        (floor, false)
+    })
+}
+
+/// The samples of a [`scaled_reconstruction`]'s decode.
+fn scaled_samples<const ESCAPES: bool>(
+    decoder: Decoder<Narrow<ESCAPES>>,
+    header: &Header,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Reconstruction {
     let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
     let (store, real) = decoder.into_real_parts();
-    let (mut slots, shift) = store.into_parts();
+    let (mut slots, shift, escaped) = store.into_parts();
     let step = header.coefficient_step;
     let scales: Vec<f32> = header
         .bands
@@ -433,33 +472,35 @@ fn scaled_reconstruction(
         header.height as usize,
         header.levels as u32,
     );
+    let known = |i: usize, slot: i16| match ESCAPES && is_escape(slot) {
+        true => escaped.get(&i).copied().unwrap_or(i32::from(slot) << shift),
+        false => i32::from(slot) << shift,
+    };
     wavelet::inverse_97_i16(
         &mut slots,
         size,
         |b, start, run, out| {
             for (k, (o, &slot)) in out.iter_mut().zip(run).enumerate() {
-                *o = real.value(b, start + k, i32::from(slot) << shift) * scales[b];
+                *o = real.value(b, start + k, known(start + k, slot)) * scales[b];
             }
         },
         |x| sample_bits(sample_type, mapping.value(x as f64)),
     );
-    Some(Reconstruction {
+    Reconstruction {
         samples: samples_from_bits(sample_type, slots, mask, header.nodata),
         passes_decoded,
         complete,
         significance: None,
-    })
+    }
 }
 
-/// Whether a decode of `header`'s stream with `available` payload bytes reads no plane
-/// below `floor`: by the ladder, the passes held whole and the one begun after them
-/// (false without a ladder, as in a file cut short).
-fn stays_above(header: &Header, available: u64, options: &DecodeOptions, floor: u32) -> bool {
-    let Some(top) = header.top_plane.map(u32::from) else {
-        return false;
-    };
+/// The lowest plane a decode of `header`'s stream with `available` payload bytes reads,
+/// by the ladder: that of the pass begun after those held whole (`None` without a
+/// ladder, as in a file cut short).
+fn lowest_plane_read(header: &Header, available: u64, options: &DecodeOptions) -> Option<u32> {
+    let top = header.top_plane.map(u32::from)?;
     if header.passes.is_empty() {
-        return floor == 0;
+        return None;
     }
     let whole = header
         .passes
@@ -469,7 +510,7 @@ fn stays_above(header: &Header, available: u64, options: &DecodeOptions, floor: 
     let read = (whole + 1)
         .min(top + 1)
         .min(options.max_passes.unwrap_or(u32::MAX));
-    top + 1 - read >= floor
+    Some(top + 1 - read)
 }
 
 /// The samples of a [`narrow_reconstruction`]'s decode.
@@ -517,7 +558,7 @@ fn narrow_inverse_53<const ESCAPES: bool>(
     for i in (0..ll.1).flat_map(|y| (y * width..).take(ll.0)) {
         coefficients.set(i, coefficients.at(i).wrapping_sub(shift));
     }
-    let (mut values, mut spilled) = coefficients.into_parts();
+    let (mut values, _, mut spilled) = coefficients.into_parts();
     if !wavelet::inverse_53_i16(&mut values, &mut spilled, width, height, levels) {
         return None;
     }
@@ -684,11 +725,13 @@ mod tests {
         sample_type: SampleType,
         (width, height): (usize, usize),
         bytes: Option<u64>,
+        gain: f64,
     ) -> Vec<u8> {
         let values: Vec<f64> = (0..width * height)
             .map(|i| {
                 let (x, y) = ((i % width) as f64, (i / width) as f64);
-                120.0 + 100.0 * (x * 0.11).sin() * (y * 0.07).cos() + 9.0 * (x * 1.3 + y).sin()
+                let wave = 100.0 * (x * 0.11).sin() * (y * 0.07).cos() + 9.0 * (x * 1.3 + y).sin();
+                120.0 * gain + wave * gain
             })
             .collect();
         let raster = Raster::new(width, height, Samples::from_f64(sample_type, &values)).unwrap();
@@ -698,9 +741,12 @@ mod tests {
         encode(&raster, &options).unwrap().bytes
     }
 
-    /// The samples of `data` by the `i32` decode and by [`reconstruction`], and whether
-    /// the latter may take the `i16` one ([`stays_above`]).
-    fn both_decodes(data: &[u8], options: &DecodeOptions) -> (Samples, Samples, bool) {
+    /// The samples of `data` by the `i32` decode and by [`reconstruction`], and the slots
+    /// of the `i16` decode the latter may take ([`scaled_slots`]).
+    fn both_decodes(
+        data: &[u8],
+        options: &DecodeOptions,
+    ) -> (Samples, Samples, Option<(u32, bool)>) {
         let data = &data[..options.max_bytes.map_or(data.len(), |b| b as usize)];
         let (header, header_len) = Header::parse(data).unwrap();
         let sections = StreamSections::read(data, &header, header_len, options.max_bytes).unwrap();
@@ -717,9 +763,8 @@ mod tests {
         let source = payload_source(&sections, complete);
         let wide = Decoder::run_from(&layout, header.coder, source, top, options.max_passes);
         let wide = reconstruct(&header, wide, mask);
-        let floor = Scaled::floor(top.unwrap());
         let available = sections.payload_check.data_len as u64;
-        let scaled = stays_above(&header, available, options, floor);
+        let scaled = scaled_slots(&header, available, options);
         let samples = reconstruction(&header, &sections, complete, options, mask).samples;
         (wide, samples, scaled)
     }
@@ -733,29 +778,61 @@ mod tests {
         ];
         for (sample_type, size) in types {
             let n = (size.0 * size.1) as u64;
-            let cut = file_97(sample_type, size, Some(n / 8 + 64));
+            let cut = file_97(sample_type, size, Some(n / 8 + 64), 1.0);
             let (wide, narrow, scaled) = both_decodes(&cut, &DecodeOptions::default());
-            assert!(scaled, "{sample_type:?} at 1 bpp");
+            assert!(scaled.is_some(), "{sample_type:?} at 1 bpp");
             assert_eq!(narrow, wide, "{sample_type:?} at 1 bpp");
-            let whole = file_97(sample_type, size, None);
+            let whole = file_97(sample_type, size, None, 1.0);
             let few = DecodeOptions::default().with_max_passes(Some(6));
-            for (options, takes) in [(few, true), (DecodeOptions::default(), false)] {
-                let (wide, narrow, scaled) = both_decodes(&whole, &options);
-                assert_eq!(scaled, takes, "{sample_type:?}, {options:?}");
+            for options in [few, DecodeOptions::default()] {
+                let (wide, narrow, _) = both_decodes(&whole, &options);
                 assert_eq!(narrow, wide, "{sample_type:?}, {options:?}");
             }
         }
         for size in [(97, 61), (1, 40), (40, 1), (2, 3)] {
-            let cut = file_97(SampleType::U16, size, Some(60));
+            let cut = file_97(SampleType::U16, size, Some(60), 1.0);
             let (wide, narrow, _) = both_decodes(&cut, &DecodeOptions::default());
             assert_eq!(narrow, wide, "{size:?} at 40 bytes");
         }
         // A prefix has no ladder: the i32 decode.
-        let whole = file_97(SampleType::I16, (64, 64), None);
+        let whole = file_97(SampleType::I16, (64, 64), None, 1.0);
         let prefix = DecodeOptions::default().with_max_bytes(Some(300));
         let (wide, narrow, scaled) = both_decodes(&whole, &prefix);
-        assert!(!scaled);
+        assert_eq!(scaled, None);
         assert_eq!(narrow, wide);
+    }
+
+    #[test]
+    fn the_i16_97_decode_escapes_the_coefficients_that_do_not_fit() {
+        // Heights spanning most of the 16-bit range, decoded to each depth: within the
+        // slots' 15 planes, then with the coefficients that do not fit escaped, until
+        // too many do not (an `i32` decode then).
+        let whole = file_97(SampleType::U16, (128, 96), None, 140.0);
+        let (header, header_len) = Header::parse(&whole).unwrap();
+        let top = u32::from(header.top_plane.unwrap());
+        let floor = top - 14;
+        assert!(floor >= 8, "top plane {top}");
+        for lowest in floor - 8..=floor + 2 {
+            let options = DecodeOptions::default().with_max_passes(Some(top + 1 - lowest));
+            let (wide, narrow, scaled) = both_decodes(&whole, &options);
+            assert_eq!(narrow, wide, "to plane {lowest}");
+            assert_eq!(scaled.map(|(_, escapes)| escapes), Some(lowest < floor));
+        }
+        let sections = StreamSections::read(&whole, &header, header_len, None).unwrap();
+        let (w, h) = (header.width as usize, header.height as usize);
+        let subbands = wavelet::subbands(w, h, header.levels as u32);
+        let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
+        let layout = CoefficientLayout::new(w, h, &subbands, &shifts);
+        let escaped = |lowest: u32| {
+            let values = Narrow::<true>::with_shift(layout.len(), lowest);
+            let source = payload_source(&sections, true);
+            let passes = (Some(top), Some(top + 1 - lowest));
+            let decoder = Decoder::try_run_into(values, &layout, header.coder, source, passes);
+            decoder.map(|d| d.into_real_parts().0.into_parts().2.len())
+        };
+        // One plane deeper escapes a few; eight, more than the table holds.
+        assert!(escaped(floor - 1).is_some_and(|n| (1..layout.len() / 64).contains(&n)));
+        assert_eq!(escaped(floor - 8), None);
     }
 
     #[test]
