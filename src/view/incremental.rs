@@ -332,7 +332,9 @@ impl Incremental {
                 // Merged into an earlier leaf.
                 continue;
             }
-            new.extend(&old.cells[k..e], &old.expiry[k..e]);
+            if k < e {
+                new.extend(&old.cells[k..e], &old.expiry[k..e]);
+            }
             stats.revisited += 1;
             self.revisit(
                 terrain,
