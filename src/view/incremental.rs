@@ -332,8 +332,11 @@ impl Incremental {
                 // Merged into an earlier leaf.
                 continue;
             }
-            new.extend(&old.cells[k..e], &old.expiry[k..e]);
+            if k < e {
+                new.extend(&old.cells[k..e], &old.expiry[k..e]);
+            }
             stats.revisited += 1;
+            let merged = stats.merged;
             self.revisit(
                 terrain,
                 view,
@@ -342,9 +345,12 @@ impl Incremental {
                 &mut stats,
             );
             k = e + 1;
-            // A merge writes a cell holding the next old leaves (a depth-first run).
-            while k < old.cells.len() && new.last().is_some_and(|l| contains(l, old.cells[k])) {
-                k += 1;
+            // A merge writes a cell holding the next old leaves (a depth-first run); a
+            // kept or split leaf holds none of them.
+            if stats.merged > merged {
+                while k < old.cells.len() && new.last().is_some_and(|l| contains(l, old.cells[k])) {
+                    k += 1;
+                }
             }
         }
         new.extend(&old.cells[k..], &old.expiry[k..]);

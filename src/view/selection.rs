@@ -256,7 +256,8 @@ impl<'a> ViewTerrain<'a> {
     /// Node `(level, i, j)` (`level ≥ 1`) under `view` and `rule`.
     #[inline]
     pub fn evaluate(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> NodeView {
-        let (lo, hi) = self.node_box(level, i, j);
+        let summary = self.nodes[level as usize - 1][z_order(i, j)];
+        let (lo, hi) = self.box_of(level, i, j, summary);
         let eye = view.camera.eye;
         let margin = 0.5 * lo.distance(hi);
         let clearance = view.frustum_clearance(lo, hi);
@@ -274,8 +275,7 @@ impl<'a> ViewTerrain<'a> {
         };
         match rule {
             Rule::ScreenSpace { tau } => {
-                let error = self.nodes[level as usize - 1][z_order(i, j)].error;
-                let error = f64::from(error);
+                let error = f64::from(summary.error);
                 node.weight = error * view.pixels_per_unit / tau;
                 if frustum > 0.0 && node.weight > 0.0 {
                     node.ratio =
@@ -347,10 +347,9 @@ impl<'a> ViewTerrain<'a> {
     #[inline]
     pub fn prefetch(&self, cell: Cell) {
         let (i, j) = cell.position();
-        for (m, k) in [
-            (cell.level, z_order(i, j)),
-            (cell.level + 1, z_order(i / 2, j / 2)),
-        ] {
+        let z = z_order(i, j);
+        // The parent's position is the child's with its two lowest bits dropped.
+        for (m, k) in [(cell.level, z), (cell.level + 1, z >> 2)] {
             if let Some(summary) = self
                 .nodes
                 .get((m as usize).wrapping_sub(1))
