@@ -859,7 +859,7 @@ pub fn errors_within<H: Height>(
         let row = y as usize * grid.width;
         let (first, last) = (row + lo as usize, row + hi as usize);
         let start = plane.at(lo, y);
-        let (row_max, row_sum) = if grid.all_valid(first, last) {
+        let (row_max, row_sum) = if grid.no_nodata || grid.all_valid(first, last) {
             row_errors(&grid.heights[first..=last], start, plane.gx)
         } else {
             valid_row_errors(grid, first, last, start, plane.gx)
