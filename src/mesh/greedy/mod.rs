@@ -26,7 +26,7 @@ use bitvec::prelude::*;
 use super::GridMesh;
 use queue::WorstFirst;
 use scan::{assess_unless_valid, assess_valid, Assessment, Grid, Height};
-use triangulation::{in_circle, orient, Triangulation, NONE};
+use triangulation::{in_circle, in_circle_near, orient, Triangulation, NEAR_SIDE, NONE};
 
 /// When insertion stops.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -304,7 +304,10 @@ impl<'a, H: Height> GreedyMesher<'a, H> {
         let Some([a, b, c, d]) = self.tin.quad_points(e) else {
             return false;
         };
-        in_circle(a, b, c, d)
+        match self.grid.width <= NEAR_SIDE && self.grid.height <= NEAR_SIDE {
+            true => in_circle_near(a, b, c, d),
+            false => in_circle(a, b, c, d),
+        }
     }
 
     /// Records triangle `t`'s assessment and queues it when it is over the settled error.

@@ -422,9 +422,20 @@ fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, usize) {
     (max, at)
 }
 
-/// Largest error and sum of squared errors of `start + gx·k` against a row.
+/// Largest error and sum of squared errors of `start + gx·k` against a row. Rows of
+/// fewer than 4 samples (most, in a fine mesh) are summed in one lane, left to right:
+/// the same bits as the four lanes give them (their other lanes add exact zeros).
 #[inline]
 fn row_errors<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, f64) {
+    if heights.len() < 4 {
+        let (mut max, mut sum) = (0.0f64, 0.0f64);
+        for (k, &h) in heights.iter().enumerate() {
+            let e = start + gx * k as f64 - h.into();
+            max = if e.abs() > max { e.abs() } else { max };
+            sum += e * e;
+        }
+        return (max, sum);
+    }
     let (mut max, mut sum) = ([0.0f64; 4], [0.0f64; 4]);
     let mut k = 0.0;
     let chunks = heights.chunks_exact(4);
@@ -859,7 +870,7 @@ pub fn errors_within<H: Height>(
         let row = y as usize * grid.width;
         let (first, last) = (row + lo as usize, row + hi as usize);
         let start = plane.at(lo, y);
-        let (row_max, row_sum) = if grid.all_valid(first, last) {
+        let (row_max, row_sum) = if grid.no_nodata || grid.all_valid(first, last) {
             row_errors(&grid.heights[first..=last], start, plane.gx)
         } else {
             valid_row_errors(grid, first, last, start, plane.gx)
@@ -942,6 +953,39 @@ mod tests {
             for (o, r) in ours.iter().zip(&reference) {
                 assert_eq!(o.0, r.0);
                 assert!((o.1 - r.1).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn short_rows_sum_their_errors_as_the_four_lanes_do() {
+        // The four-lane sum of rows of 1 to 3 samples, written out, against row_errors.
+        let lanes = |heights: &[f64], start: f64, gx: f64| {
+            let (mut max, mut sum) = ([0.0f64; 4], [0.0f64; 4]);
+            for (j, &h) in heights.iter().enumerate() {
+                let e = start + gx * (0.0 + j as f64) - h;
+                max[j] = if e.abs() > max[j] { e.abs() } else { max[j] };
+                sum[j] += e * e;
+            }
+            (
+                max[0].max(max[1]).max(max[2].max(max[3])),
+                (sum[0] + sum[1]) + (sum[2] + sum[3]),
+            )
+        };
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 200.0 - 100.0
+        };
+        for len in 1..4 {
+            for _ in 0..2000 {
+                let heights: Vec<f64> = (0..len).map(|_| next()).collect();
+                let (start, gx) = (next(), next() / 7.0);
+                let (ours, theirs) = (row_errors(&heights, start, gx), lanes(&heights, start, gx));
+                assert_eq!(ours.0.to_bits(), theirs.0.to_bits(), "{heights:?}");
+                assert_eq!(ours.1.to_bits(), theirs.1.to_bits(), "{heights:?}");
             }
         }
     }

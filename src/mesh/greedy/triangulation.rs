@@ -53,18 +53,35 @@ pub fn orient(a: (i64, i64), b: (i64, i64), c: (i64, i64)) -> i64 {
 /// keeps the determinant under 2^61, else `i128`).
 pub fn in_circle(a: (i64, i64), b: (i64, i64), c: (i64, i64), d: (i64, i64)) -> bool {
     let offset = |p: (i64, i64)| (p.0 - d.0, p.1 - d.1);
-    let (a, b, c) = (offset(a), offset(b), offset(c));
-    let small = |o: (i64, i64)| o.0.abs() < 1 << 14 && o.1.abs() < 1 << 14;
+    let small = |p: (i64, i64)| {
+        let o = offset(p);
+        o.0.abs() < 1 << 14 && o.1.abs() < 1 << 14
+    };
     if small(a) && small(b) && small(c) {
-        let row = |(x, y): (i64, i64)| (x, y, x * x + y * y);
-        in_circle_determinant([row(a), row(b), row(c)]) > 0
+        in_circle_near(a, b, c, d)
     } else {
-        let row = |(x, y): (i64, i64)| {
+        let row = |p: (i64, i64)| {
+            let (x, y) = offset(p);
             let (x, y) = (i128::from(x), i128::from(y));
             (x, y, x * x + y * y)
         };
         in_circle_determinant([row(a), row(b), row(c)]) > 0
     }
+}
+
+/// Grids at most this many samples a side keep every coordinate difference under 2^14,
+/// so [`in_circle_near`] applies to any four of their points.
+pub const NEAR_SIDE: usize = 1 << 14;
+
+/// [`in_circle`] of points whose offsets from `d` are all under 2^14 (in `i64`, with no
+/// range check: the caller knows, e.g. from a grid at most [`NEAR_SIDE`] a side).
+#[inline]
+pub fn in_circle_near(a: (i64, i64), b: (i64, i64), c: (i64, i64), d: (i64, i64)) -> bool {
+    let row = |p: (i64, i64)| {
+        let (x, y) = (p.0 - d.0, p.1 - d.1);
+        (x, y, x * x + y * y)
+    };
+    in_circle_determinant([row(a), row(b), row(c)]) > 0
 }
 
 /// The in-circle determinant of rows `(x, y, x² + y²)` (offsets from the tested point).
@@ -270,14 +287,26 @@ impl Triangulation {
     #[inline]
     pub fn flip(&mut self, e: u32) -> [u32; 2] {
         let f = self.twins[e as usize];
-        let [a, b, c, d] = self.quad(e).expect("an interior edge");
-        let (x1, x2) = (self.twins[next(e) as usize], self.twins[prev(e) as usize]);
-        let (y1, y2) = (self.twins[next(f) as usize], self.twins[prev(f) as usize]);
-        let (t1, t2) = (e / 3, f / 3);
-        // t1: c→a, a→d, d→c; t2: d→b, b→c, c→d.
-        self.set_triangle(t1, [c, a, d], [x2, y1, 3 * t2 + 2]);
-        self.set_triangle(t2, [d, b, c], [y2, x1, 3 * t1 + 2]);
-        [3 * t1 + 1, 3 * t2]
+        assert!(f != NONE, "an interior edge");
+        let corner = |h: u32| self.corners[h as usize];
+        let [a, b, c, d] = [corner(e), corner(next(e)), corner(prev(e)), corner(prev(f))];
+        let twin = |h: u32| self.twins[h as usize];
+        let (x1, x2) = (twin(next(e)), twin(prev(e)));
+        let (y1, y2) = (twin(next(f)), twin(prev(f)));
+        let (e1, e2) = (3 * (e / 3), 3 * (f / 3));
+        // t1: c→a, a→d, d→c; t2: d→b, b→c, c→d. Written at once: the two new
+        // triangles' six half-edges, then the four outer ones pointing back.
+        let (t1, t2) = (e1 as usize, e2 as usize);
+        self.corners[t1..t1 + 3].copy_from_slice(&[c, a, d]);
+        self.corners[t2..t2 + 3].copy_from_slice(&[d, b, c]);
+        self.twins[t1..t1 + 3].copy_from_slice(&[x2, y1, e2 + 2]);
+        self.twins[t2..t2 + 3].copy_from_slice(&[y2, x1, e1 + 2]);
+        for (h, outer) in [(e1, x2), (e1 + 1, y1), (e2, y2), (e2 + 1, x1)] {
+            if outer != NONE {
+                self.twins[outer as usize] = h;
+            }
+        }
+        [e1 + 1, e2]
     }
 }
 
@@ -396,6 +425,31 @@ pub(crate) mod tests {
         assert!(!in_circle((0, 0), (far, 0), (far, far), (0, far)));
         assert!(!in_circle((0, 0), (far, 0), (far, far), (-1, far + 1)));
         assert!(in_circle((0, 0), (9, 0), (9, 9), (1, 8)));
+    }
+
+    #[test]
+    fn in_circle_near_agrees_with_in_circle() {
+        let mut state = 7u64;
+        let mut point = || {
+            let mut coordinate = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 40) % 24) as i64
+            };
+            (coordinate(), coordinate())
+        };
+        let (mut inside, mut outside) = (0, 0);
+        for _ in 0..20000 {
+            let (a, b, c, d) = (point(), point(), point(), point());
+            if orient(a, b, c) <= 0 {
+                continue;
+            }
+            let near = in_circle_near(a, b, c, d);
+            assert_eq!(near, in_circle(a, b, c, d), "{a:?} {b:?} {c:?} {d:?}");
+            (inside, outside) = (inside + usize::from(near), outside + usize::from(!near));
+        }
+        assert!(inside > 100 && outside > 100);
     }
 
     #[test]
