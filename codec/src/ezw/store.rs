@@ -62,6 +62,11 @@ impl Known for Vec<i32> {
     fn at(&self, i: usize) -> i32 {
         self[i]
     }
+
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        rows_sum(self, i, w, |x| u64::from(x.unsigned_abs()))
+    }
 }
 
 impl Known for [i16] {
