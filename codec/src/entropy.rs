@@ -87,12 +87,18 @@ impl BitModel {
         let target = PROB_FLOOR as i32 + (!bit as i32) * (PROB_ONE as i32 - 2 * PROB_FLOOR as i32);
         let fast = self.fast as i32;
         let slow = self.slow as i32;
+        // Settled models (nearly every update): constant rates, no age to keep.
+        if self.count >= SLOW_RATE as u16 {
+            self.fast = (fast + ((target - fast) >> FAST_RATE)) as u16;
+            self.slow = (slow + ((target - slow) >> SLOW_RATE)) as u16;
+            return;
+        }
         // The slow estimate starts as a running average (rate 1, 2, 3, ... after the first
         // bits) and settles at SLOW_RATE; the fast one likewise up to FAST_RATE.
         let age = self.count as u32 + 1;
         self.fast = (fast + ((target - fast) >> FAST_RATE.min(age))) as u16;
         self.slow = (slow + ((target - slow) >> SLOW_RATE.min(age))) as u16;
-        self.count = (self.count + 1).min(SLOW_RATE as u16);
+        self.count += 1;
     }
 }
 

@@ -370,3 +370,58 @@ fn every_tile_of_a_max_error_file_has_a_ladder_start() {
         }
     }
 }
+
+/// A budget's cut does not depend on how far the encoder first coded each tile: tiles
+/// coded up to their caps (coded again where the cut comes near a cap) and tiles coded
+/// whole cut to the same bytes, at rates where the caps stop every tile and where they
+/// stop none.
+#[test]
+fn a_cut_does_not_depend_on_the_tiles_caps() {
+    use wavemesh_codec::tiles::{cut_to_budget, encode_tile, tile_cap, RasterInfo};
+    use wavemesh_codec::{CodecError, TileGrid};
+    let mut raster = terrain(300, 260);
+    if let Samples::I16(s) = &mut raster.samples {
+        // One rough corner, so one tile needs several times its share.
+        for (i, v) in s
+            .iter_mut()
+            .enumerate()
+            .filter(|(i, _)| i % 300 < 100 && i / 300 < 90)
+        {
+            *v += ((i as u64).wrapping_mul(2654435761) % 900) as i16;
+        }
+    }
+    let grid = TileGrid::balanced(300, 260, 128).unwrap();
+    let info = RasterInfo::of(&raster);
+    for budget in [1_000, 4_000, 15_000, 40_000] {
+        let options = tiled(128, Quality::Lossless, Some(budget));
+        let code = |k: usize, cap: Option<u64>| {
+            let w = grid.coded(k);
+            encode_tile(&raster.crop(w.x, w.y, w.width, w.height), &options, cap)
+        };
+        let mut recoded = 0;
+        let mut recode = |k: usize, cap: u64| {
+            recoded += 1;
+            code(k, Some(cap))
+        };
+        let cut = |cap: &dyn Fn(usize) -> Option<u64>, recode: &mut dyn FnMut(usize, u64) -> _| {
+            let tiles = (0..grid.count())
+                .map(|k| code(k, cap(k)))
+                .collect::<Result<_, _>>();
+            let cut: Vec<_> =
+                cut_to_budget::<CodecError>(tiles.unwrap(), &info, &grid, budget, recode).unwrap();
+            cut.into_iter().map(|t| t.bytes).collect::<Vec<_>>()
+        };
+        let samples = (300 * 260) as u64;
+        let capped = cut(
+            &|k| tile_cap(Some(budget), &grid.coded(k), samples),
+            &mut recode,
+        );
+        let whole = cut(&|_| None, &mut |_, _| {
+            unreachable!("a whole tile is never starved")
+        });
+        assert_eq!(
+            capped, whole,
+            "budget {budget} ({recoded} tiles coded again)"
+        );
+    }
+}

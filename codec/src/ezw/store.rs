@@ -35,21 +35,26 @@ impl Known for [i32] {
         self[i]
     }
 
-    /// Three rows of three read as slices: three bounds checks rather than eight.
     #[inline(always)]
     fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        let (up, row, down) = (
-            &self[i - w - 1..i - w + 2],
-            &self[i - 1..i + 2],
-            &self[i + w - 1..i + w + 2],
-        );
-        let m = |x: i32| u64::from(x.unsigned_abs());
-        2 * (m(row[0]) + m(row[2]) + m(up[1]) + m(down[1]))
-            + m(up[0])
-            + m(up[2])
-            + m(down[0])
-            + m(down[2])
+        rows_sum(self, i, w, |x| u64::from(x.unsigned_abs()))
     }
+}
+
+/// [`Known::interior_sum`] of a slice, its three rows of three read as slices: three
+/// bounds checks rather than eight.
+#[inline(always)]
+fn rows_sum<T: Copy>(v: &[T], i: usize, w: usize, m: impl Fn(T) -> u64) -> u64 {
+    let (up, row, down) = (
+        &v[i - w - 1..i - w + 2],
+        &v[i - 1..i + 2],
+        &v[i + w - 1..i + w + 2],
+    );
+    2 * (m(row[0]) + m(row[2]) + m(up[1]) + m(down[1]))
+        + m(up[0])
+        + m(up[2])
+        + m(down[0])
+        + m(down[2])
 }
 
 impl Known for Vec<i32> {
@@ -57,12 +62,22 @@ impl Known for Vec<i32> {
     fn at(&self, i: usize) -> i32 {
         self[i]
     }
+
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        rows_sum(self, i, w, |x| u64::from(x.unsigned_abs()))
+    }
 }
 
 impl Known for [i16] {
     #[inline(always)]
     fn at(&self, i: usize) -> i32 {
         i32::from(self[i])
+    }
+
+    #[inline(always)]
+    fn interior_sum(&self, i: usize, w: usize) -> u64 {
+        rows_sum(self, i, w, |x| u64::from(x.unsigned_abs()))
     }
 }
 

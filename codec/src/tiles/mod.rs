@@ -387,18 +387,29 @@ fn encode_tiles(
         .collect()
 }
 
-/// Bytes a tile is coded to under a file budget: four times its share by area (and
-/// 4 KiB), so no tile spends time on planes the allocation would never give it bytes
-/// for, and a tile four times more detailed than the average still gets what it needs.
+/// Bytes a tile is coded to under a file budget: one and a half times its share by area
+/// (and 4 KiB).
+/// A tile the allocation reads nearly to its cap is coded again with a larger one
+/// ([`cut_to_budget`]); the cut does not depend on the caps.
 pub fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
     let share = budget? as f64 * (tile.width * tile.height) as f64 / samples as f64;
-    Some((4.0 * share) as u64 + 4096)
+    Some((CAP_SHARES * share) as u64 + 4096)
 }
 
+/// A tile's first cap in shares of the budget by area (see [`tile_cap`]). Caps of 4
+/// shares coded sthelens_10m's four tiles to 4 times what the cut kept; the cut is the
+/// same whatever the caps, so they only trade coding past the cut against coding a
+/// detailed tile twice.
+const CAP_SHARES: f64 = 1.5;
+
+/// How many times its bytes a starved tile is coded to again.
+const RECODE_FACTOR: u64 = 3;
+
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
-/// allocation would read to the end are first coded again by `recode(k, cap)`, as
-/// `starved_tiles` says, until the budget, not a cap, ends every tile (at most six
-/// rounds). The index shrinks with the cut (fewer passes to list), so the header and
+/// allocation reads [nearly](Planned::near_end) to the end of are first coded again by
+/// `recode(k, cap)` with three times the bytes, until no cap comes near the cut (at most
+/// six rounds): the allocation of a tile's prefix then does not depend on where its cap
+/// stopped it. The index shrinks with the cut (fewer passes to list), so the header and
 /// index are first counted without passes, then the excess of each try, if any, is
 /// taken off the tiles' share.
 pub fn cut_to_budget<E: From<CodecError>>(
@@ -409,74 +420,100 @@ pub fn cut_to_budget<E: From<CodecError>>(
     recode: &mut dyn FnMut(usize, u64) -> Result<EncodedTile, E>,
 ) -> Result<Vec<EncodedTile>, E> {
     for _ in 0..6 {
-        let starved = starved_tiles(&tiles, info, grid, budget)?;
+        let (cut, starved) = plan_cut(&tiles, info, grid, budget)?;
         if starved.is_empty() {
-            break;
+            return Ok(cut);
         }
         for (k, cap) in starved {
             tiles[k] = recode(k, cap)?;
         }
     }
-    Ok(cut_recoded(tiles, info, grid, budget)?)
+    Ok(plan_cut(&tiles, info, grid, budget)?.0)
 }
 
-/// The tiles to code again, each with its new cap (four times its bytes): those whose
-/// cap cut their stream and that the allocation of `budget` reads through their last
-/// complete pass — it knows nothing of them beyond the cap, so it may be starving them.
-/// Empty when no cap binds.
-pub(crate) fn starved_tiles(
+/// A tile as the allocation sees it: its rate–distortion points (see
+/// [`EncodedTile::points`]) with its head counted as long as a cut header makes it (a
+/// whole tile's may be a byte or two shorter, a capped tile's depends on where the cap
+/// stopped it), its whole length and the end of its last known point in those terms.
+struct Planned {
+    points: Vec<(u64, f64)>,
+    len: u64,
+    known: u64,
+}
+
+impl Planned {
+    fn of(tile: &EncodedTile, lossless: bool) -> Result<Planned, CodecError> {
+        let entry = &tile.summary.entry;
+        let head = cut_tile(&tile.bytes, &tile.summary, entry.head_len)?
+            .summary
+            .entry
+            .head_len;
+        let shift = |end: u64| end - entry.head_len + head;
+        let points = tile.points(lossless);
+        let known = entry.passes.iter().chain(&tile.checkpoints).map(|p| p.0);
+        Ok(Planned {
+            points: points.iter().map(|&(end, e)| (shift(end), e)).collect(),
+            len: shift(tile.bytes.len() as u64),
+            known: shift(known.max().unwrap_or(entry.head_len)),
+        })
+    }
+
+    /// Whether an allocation of `len` bytes comes within 64 bytes and 1/32 of the end of
+    /// what the tile's points know of (past its head): the last points of a capped tile
+    /// may be off its whole stream's hull, and its last bytes are flushed at the cap.
+    fn near_end(&self, len: u64) -> bool {
+        let head = self.points[0].0;
+        let known = self.known.saturating_sub(head);
+        32 * (len.saturating_sub(head) + 64) > 31 * known
+    }
+}
+
+/// A tile to code again and its new cap.
+type Recode = (usize, u64);
+
+/// The cut of [`cut_to_budget`] for the tiles as they are coded, and the tiles to code
+/// again, each with its new cap ([`RECODE_FACTOR`] times its bytes): those whose cap stopped their stream
+/// and that the cut reads [nearly](Planned::near_end) to their last known point.
+fn plan_cut(
     tiles: &[EncodedTile],
     info: &RasterInfo,
     grid: &TileGrid,
     budget: u64,
-) -> Result<Vec<(usize, u64)>, CodecError> {
+) -> Result<(Vec<EncodedTile>, Vec<Recode>), CodecError> {
     let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-    let points = tile_points(tiles, &summaries);
-    let reserve = tiled_head(info, grid, &summaries).len() as u64;
-    let Some(lengths) = budget
-        .checked_sub(reserve)
-        .and_then(|left| allocate_points(&points, left))
-    else {
-        return Ok(Vec::new());
-    };
+    let lossless = weakest_mode(&summaries) == Mode::Lossless;
+    let planned = tiles
+        .iter()
+        .map(|t| Planned::of(t, lossless))
+        .collect::<Result<Vec<Planned>, CodecError>>()?;
+    let (cut, lengths) = cut_planned(tiles, &planned, info, grid, budget)?;
     let mut starved = Vec::new();
     for (k, tile) in tiles.iter().enumerate() {
-        let known = tile
-            .summary
-            .entry
-            .passes
-            .iter()
-            .chain(&tile.checkpoints)
-            .map(|p| p.0)
-            .max()
-            .unwrap_or(0);
-        if lengths[k] >= known && Header::parse_tile(&tile.bytes)?.0.payload_truncated {
-            starved.push((k, 4 * tile.bytes.len() as u64));
+        if planned[k].near_end(lengths[k]) && Header::parse_tile(&tile.bytes)?.0.payload_truncated {
+            starved.push((k, RECODE_FACTOR * tile.bytes.len() as u64));
         }
     }
-    Ok(starved)
+    Ok((cut, starved))
 }
 
-/// Each tile's rate–distortion points (see [`EncodedTile::points`]).
-fn tile_points(tiles: &[EncodedTile], summaries: &[TileSummary]) -> Vec<Vec<(u64, f64)>> {
-    let lossless = weakest_mode(summaries) == Mode::Lossless;
-    tiles.iter().map(|t| t.points(lossless)).collect()
-}
-
-/// The cut of [`cut_to_budget`], once no cap limits a tile.
-fn cut_recoded(
-    tiles: Vec<EncodedTile>,
+/// Cuts `tiles`, seen by the allocation as `planned`, to fit `budget`; also returns the
+/// bytes the allocation gave each.
+fn cut_planned(
+    tiles: &[EncodedTile],
+    planned: &[Planned],
     info: &RasterInfo,
     grid: &TileGrid,
     budget: u64,
-) -> Result<Vec<EncodedTile>, CodecError> {
-    let summaries: Vec<TileSummary> = tiles.iter().map(|t| t.summary.clone()).collect();
-    let points = tile_points(&tiles, &summaries);
-    let bare: Vec<TileSummary> = summaries
+) -> Result<(Vec<EncodedTile>, Vec<u64>), CodecError> {
+    let points: Vec<Vec<(u64, f64)>> = planned.iter().map(|p| p.points.clone()).collect();
+    // The header and index without passes, each tile no longer than its head.
+    let bare: Vec<TileSummary> = tiles
         .iter()
-        .map(|t| {
-            let mut t = t.clone();
+        .zip(planned)
+        .map(|(t, p)| {
+            let mut t = t.summary.clone();
             t.entry.passes.clear();
+            (t.entry.len, t.entry.head_len) = (p.points[0].0, p.points[0].0);
             t
         })
         .collect();
@@ -494,14 +531,18 @@ fn cut_recoded(
             .ok_or_else(too_small)?;
         let cut = tiles
             .iter()
-            .zip(lengths)
-            .map(|(tile, len)| cut_tile(&tile.bytes, &tile.summary, len))
+            .zip(planned)
+            .zip(&lengths)
+            .map(|((tile, p), &len)| {
+                let len = if len >= p.len { u64::MAX } else { len };
+                cut_tile(&tile.bytes, &tile.summary, len)
+            })
             .collect::<Result<Vec<EncodedTile>, CodecError>>()?;
         let cut_summaries: Vec<TileSummary> = cut.iter().map(|t| t.summary.clone()).collect();
         let total = tiled_head(info, grid, &cut_summaries).len() as u64
             + cut.iter().map(|t| t.bytes.len() as u64).sum::<u64>();
         if total <= budget {
-            return Ok(cut);
+            return Ok((cut, lengths));
         }
         reserve += total - budget;
     }
