@@ -69,18 +69,6 @@ impl Known for Vec<i32> {
     }
 }
 
-impl Known for [i16] {
-    #[inline(always)]
-    fn at(&self, i: usize) -> i32 {
-        i32::from(self[i])
-    }
-
-    #[inline(always)]
-    fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        rows_sum(self, i, w, |x| u64::from(x.unsigned_abs()))
-    }
-}
-
 /// A decoder's coefficient store.
 pub trait Store: Known + Send + Sized {
     /// The coefficients as the scans of the passes up to [`super::SATURATED_PLANE`] may
@@ -156,22 +144,9 @@ impl Known for Slots {
         i32::from(self.values[i]) << self.shift
     }
 
-    /// Three rows of three read as slices: three bounds checks rather than eight.
     #[inline(always)]
     fn interior_sum(&self, i: usize, w: usize) -> u64 {
-        let v = &self.values;
-        let (up, row, down) = (
-            &v[i - w - 1..i - w + 2],
-            &v[i - 1..i + 2],
-            &v[i + w - 1..i + w + 2],
-        );
-        let m = |x: i16| u64::from(x.unsigned_abs());
-        let sum = 2 * (m(row[0]) + m(row[2]) + m(up[1]) + m(down[1]))
-            + m(up[0])
-            + m(up[2])
-            + m(down[0])
-            + m(down[2]);
-        sum << self.shift
+        rows_sum(&self.values, i, w, |x| u64::from(x.unsigned_abs())) << self.shift
     }
 }
 
