@@ -406,8 +406,8 @@ const CAP_SHARES: f64 = 1.5;
 const RECODE_FACTOR: u64 = 3;
 
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
-/// allocation reads [nearly](Planned::near_end) to the end of are first coded again by
-/// `recode(k, cap)` with three times the bytes, until no cap comes near the cut (at most
+/// allocation reads nearly to the end of (within 64 bytes and 1/32) are first coded
+/// again by `recode(k, cap)` with three times the bytes, until no cap comes near the cut (at most
 /// six rounds): the allocation of a tile's prefix then does not depend on where its cap
 /// stopped it. The index shrinks with the cut (fewer passes to list), so the header and
 /// index are first counted without passes, then the excess of each try, if any, is
