@@ -410,9 +410,9 @@ fn narrow_reconstruction(
 /// lowest plane its decode reads: the coefficients as `i16` slots in units of that plane
 /// or above ([`Narrow`]: with no slot escaped when every magnitude fits, else with the
 /// large ones escaped: those significant in the passes above the slots' 15 planes, so a
-/// store that overflows does so in the first, cheap passes), dequantised as the inverse reads them and the samples written over them
-/// ([`wavelet::inverse_97_i16`]), about 1.6 times the samples' bytes where the `i32`
-/// decode holds 2 and more. The samples are those of [`reconstruct`]. `None` for that
+/// store that overflows does so in the first, cheap passes), dequantised as the inverse
+/// reads them and the samples written over them ([`wavelet::inverse_97_i16`]), about 1.6
+/// times the samples' bytes where the `i32` decode holds 2 and more. The samples are those of [`reconstruct`]. `None` for that
 /// decode.
 fn scaled_reconstruction(
     layout: &CoefficientLayout,

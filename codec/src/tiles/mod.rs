@@ -407,9 +407,9 @@ const RECODE_FACTOR: u64 = 3;
 
 /// Cuts tiles so the whole file fits `budget` bytes. Tiles coded up to a cap that the
 /// allocation reads nearly to the end of (within 64 bytes and 1/32) are first coded
-/// again by `recode(k, cap)` with three times the bytes, until no cap comes near the cut (at most
-/// six rounds): the allocation of a tile's prefix then does not depend on where its cap
-/// stopped it. The index shrinks with the cut (fewer passes to list), so the header and
+/// again by `recode(k, cap)` with three times the bytes, until no cap comes near the cut
+/// (at most six rounds): the allocation of a tile's prefix then does not depend on where
+/// its cap stopped it. The index shrinks with the cut (fewer passes to list), so the header and
 /// index are first counted without passes, then the excess of each try, if any, is
 /// taken off the tiles' share.
 pub fn cut_to_budget<E: From<CodecError>>(
@@ -472,8 +472,9 @@ impl Planned {
 type Recode = (usize, u64);
 
 /// The cut of [`cut_to_budget`] for the tiles as they are coded, and the tiles to code
-/// again, each with its new cap ([`RECODE_FACTOR`] times its bytes): those whose cap stopped their stream
-/// and that the cut reads [nearly](Planned::near_end) to their last known point.
+/// again, each with its new cap ([`RECODE_FACTOR`] times its bytes): those whose cap
+/// stopped their stream and that the cut reads [nearly](Planned::near_end) to their last
+/// known point.
 fn plan_cut(
     tiles: &[EncodedTile],
     info: &RasterInfo,
