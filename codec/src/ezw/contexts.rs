@@ -210,7 +210,7 @@ pub(super) struct At {
 
 /// The significance and zerotree model indices of insignificant coefficient `at` at own
 /// plane `p`.
-#[inline]
+#[inline(always)]
 pub(super) fn dominant_contexts<S: Side>(
     contexts: &Contexts,
     grid: &FlagGrid,
