@@ -412,8 +412,8 @@ fn narrow_reconstruction(
 /// large ones escaped: those significant in the passes above the slots' 15 planes, so a
 /// store that overflows does so in the first, cheap passes), dequantised as the inverse
 /// reads them and the samples written over them ([`wavelet::inverse_97_i16`]), about 1.6
-/// times the samples' bytes where the `i32` decode holds 2 and more. The samples are those of [`reconstruct`]. `None` for that
-/// decode.
+/// times the samples' bytes where the `i32` decode holds 2 and more. The samples are
+/// those of [`reconstruct`]. `None` for that decode.
 fn scaled_reconstruction(
     layout: &CoefficientLayout,
     header: &Header,
