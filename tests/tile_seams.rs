@@ -10,11 +10,18 @@
 mod support;
 
 use wavemesh::dem::{read_dem, ReadOptions};
-use wavemesh_codec::{decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, TileGrid};
+use wavemesh_codec::research::code_blocks;
+use wavemesh_codec::{
+    decode, encode, DecodeOptions, EncodeOptions, Quality, Raster, SampleType, TileGrid, Wavelet,
+};
 
 /// Squared errors and counts of the valid samples on tile borders (the first and last
 /// row and column of every tile, where a neighbour tile begins) and inside tiles.
-fn seam_errors(original: &Raster, decoded: &Raster, grid: &TileGrid) -> [(f64, usize); 2] {
+fn seam_errors(
+    original: &Raster,
+    decoded: impl Fn(usize) -> f64,
+    grid: &TileGrid,
+) -> [(f64, usize); 2] {
     let mut sums = [(0.0, 0); 2];
     for y in 0..original.height {
         for x in 0..original.width {
@@ -28,7 +35,7 @@ fn seam_errors(original: &Raster, decoded: &Raster, grid: &TileGrid) -> [(f64, u
             let border_y =
                 (ty == 0 && y > 0) || (ty == grid.tile_height - 1 && y + 1 < original.height);
             let slot = usize::from(!(border_x || border_y));
-            let e = original.samples.get_f64(i) - decoded.samples.get_f64(i);
+            let e = original.samples.get_f64(i) - decoded(i);
             sums[slot].0 += e * e;
             sums[slot].1 += 1;
         }
@@ -66,9 +73,9 @@ fn tile_seams_on_shared_dems() {
         let whole_out = decode(&whole.bytes, &DecodeOptions::default())
             .unwrap()
             .raster;
-        let [border, interior] = seam_errors(&raster, &tiled_out, &grid);
+        let [border, interior] = seam_errors(&raster, |i| tiled_out.samples.get_f64(i), &grid);
         let all = (border.0 + interior.0, border.1 + interior.1);
-        let [wb, wi] = seam_errors(&raster, &whole_out, &grid);
+        let [wb, wi] = seam_errors(&raster, |i| whole_out.samples.get_f64(i), &grid);
         let untiled = (wb.0 + wi.0, wb.1 + wi.1);
         eprintln!(
             "{name}: border RMSE {:.3} / interior {:.3} = {:.3}; PSNR loss {:.3} dB (untiled border/interior {:.3})",
@@ -83,5 +90,98 @@ fn tile_seams_on_shared_dems() {
             rmse(all) <= 1.1 * rmse(untiled),
             "{name}: PSNR loss over 0.83 dB"
         );
+    }
+}
+
+/// PSNR of `values` against the valid samples of `original` (R = max − min).
+fn psnr(original: &Raster, values: impl Fn(usize) -> f64) -> f64 {
+    let (mut sse, mut n, mut lo, mut hi) = (0.0, 0usize, f64::MAX, f64::MIN);
+    for i in (0..original.len()).filter(|&i| original.is_valid(i)) {
+        let v = original.samples.get_f64(i);
+        (lo, hi) = (lo.min(v), hi.max(v));
+        sse += (v - values(i)).powi(2);
+        n += 1;
+    }
+    20.0 * ((hi - lo) / (sse / n as f64).sqrt()).log10()
+}
+
+/// Issue 9's way to the 0.2 dB, measured before the format has it: 256-sample code
+/// blocks under one 6-level 9/7 transform, each block's stream cut by the same
+/// allocation as tiles and charged its entry in a compact tile index plus a byte, at
+/// the bytes a one-stream file spends on its payload. Today's figures (printed with
+/// `--nocapture`): 0.05–0.21 dB below one stream where 256² tiles lose 0.33–0.73.
+#[test]
+fn code_blocks_under_one_transform_on_shared_dems() {
+    let Some(dir) = support::shared_dem("code_blocks_under_one_transform_on_shared_dems") else {
+        return;
+    };
+    for name in [
+        "srtm3_n57e011",
+        "sthelens_10m",
+        "alps_montblanc",
+        "srtm3_utm32_f32",
+    ] {
+        let path = dir.join(name).join(format!("{name}.tif"));
+        let raster = read_dem(&path, &ReadOptions::default()).unwrap();
+        let budget = (0.25 * raster.len() as f64 / 8.0) as u64;
+        let options = EncodeOptions::new(Quality::Lossless, Some(budget)).with_tile_size(None);
+        let whole = encode(&raster, &options).unwrap();
+        let out = decode(&whole.bytes, &DecodeOptions::default())
+            .unwrap()
+            .raster;
+        let one_stream = psnr(&raster, |i| out.samples.get_f64(i));
+        let payload = budget - whole.header_len as u64 - u64::from(whole.header.mask_len);
+        let integer = raster.sample_type() != SampleType::F32;
+        let blocked = |head| {
+            let b = code_blocks(&raster, Wavelet::Cdf97, (256, 6), Some(payload), head).unwrap();
+            let values: Vec<f64> = match integer {
+                true => b.values.iter().map(|v| v.round()).collect(),
+                false => b.values.iter().map(|&v| f64::from(v as f32)).collect(),
+            };
+            (values, b.index_bytes as u64 / b.block_bytes.len() as u64)
+        };
+        let (free, index_per_block) = blocked(0);
+        let (charged, _) = blocked(index_per_block + 1);
+        let grid = TileGrid {
+            tile_width: 256,
+            tile_height: 256,
+            overlap: 0,
+            ..TileGrid::balanced(raster.width, raster.height, 256).unwrap()
+        };
+        let [border, interior] = seam_errors(&raster, |i| charged[i], &grid);
+        let lost = one_stream - psnr(&raster, |i| charged[i]);
+        eprintln!(
+            "{name}: one stream {one_stream:.3} dB; 256-sample blocks under one transform {lost:.3} dB lost ({:.3} with their heads free; index {index_per_block} bytes a block), border RMSE / interior {:.3}",
+            one_stream - psnr(&raster, |i| free[i]),
+            rmse(border) / rmse(interior),
+        );
+        assert!(lost < 0.25, "{name}: blocks lose over 0.25 dB");
+        assert!(rmse(border) <= 1.1 * rmse(interior), "{name}: border RMSE");
+    }
+}
+
+/// Lossless 5/3 code blocks rebuild every integer sample exactly, for ≤ 2.5 % more
+/// payload than one block over the raster (256² tiles: 3.0–4.3 % larger files).
+#[test]
+fn lossless_code_blocks_are_exact() {
+    let Some(dir) = support::shared_dem("lossless_code_blocks_are_exact") else {
+        return;
+    };
+    for name in ["srtm3_n57e011", "alps_montblanc"] {
+        let path = dir.join(name).join(format!("{name}.tif"));
+        let raster = read_dem(&path, &ReadOptions::default()).unwrap();
+        let whole = raster.width.max(raster.height).next_power_of_two();
+        let payload = |block| {
+            let b = code_blocks(&raster, Wavelet::Int53, (block, 6), None, 0).unwrap();
+            assert!(
+                (0..raster.len()).all(|i| b.values[i] == raster.samples.get_f64(i)),
+                "{name}: {block}-sample blocks are not exact"
+            );
+            b.block_bytes.iter().sum::<u64>() + b.index_bytes as u64
+        };
+        let (one, blocks) = (payload(whole), payload(256));
+        let over = 100.0 * (blocks as f64 / one as f64 - 1.0);
+        eprintln!("{name}: lossless 256-sample blocks {blocks} bytes with their index, +{over:.2} % over one block ({one})");
+        assert!(over < 2.5, "{name}: +{over:.2} %");
     }
 }

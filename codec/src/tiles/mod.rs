@@ -6,6 +6,9 @@
 //! depend on the number of threads.
 
 mod allocate;
+// Used by the research measurement until the format has code blocks.
+#[cfg(any(test, feature = "research"))]
+mod blocks;
 mod index;
 mod stream;
 mod verify;
@@ -14,8 +17,12 @@ mod workers;
 use std::io;
 
 pub use allocate::allocate;
-use allocate::allocate_points;
+pub(crate) use allocate::allocate_points;
+#[cfg(feature = "research")]
+pub(crate) use blocks::{Block, BlockGrid};
 pub use decode::decode_tile;
+#[cfg(feature = "research")]
+pub(crate) use index::write_index;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
 pub use stream::{encode_tile, EncodedTile, TileSummary};
