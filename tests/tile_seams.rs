@@ -43,23 +43,32 @@ fn seam_errors(
     sums
 }
 
+/// The shared DEMs the seams are measured on (none, with a notice, when absent).
+fn seam_dems(test: &str) -> Vec<(&'static str, Raster)> {
+    let Some(dir) = support::shared_dem(test) else {
+        return Vec::new();
+    };
+    [
+        "srtm3_n57e011",
+        "sthelens_10m",
+        "alps_montblanc",
+        "srtm3_utm32_f32",
+    ]
+    .into_iter()
+    .map(|name| {
+        let path = dir.join(name).join(format!("{name}.tif"));
+        (name, read_dem(&path, &ReadOptions::default()).unwrap())
+    })
+    .collect()
+}
+
 fn rmse((sum, n): (f64, usize)) -> f64 {
     (sum / n.max(1) as f64).sqrt()
 }
 
 #[test]
 fn tile_seams_on_shared_dems() {
-    let Some(dir) = support::shared_dem("tile_seams_on_shared_dems") else {
-        return;
-    };
-    for name in [
-        "srtm3_n57e011",
-        "sthelens_10m",
-        "alps_montblanc",
-        "srtm3_utm32_f32",
-    ] {
-        let path = dir.join(name).join(format!("{name}.tif"));
-        let raster = read_dem(&path, &ReadOptions::default()).unwrap();
+    for (name, raster) in seam_dems("tile_seams_on_shared_dems") {
         let budget = (0.25 * raster.len() as f64 / 8.0) as u64;
         let options = |tile: Option<u32>| {
             EncodeOptions::new(Quality::Lossless, Some(budget)).with_tile_size(tile)
@@ -112,17 +121,7 @@ fn psnr(original: &Raster, values: impl Fn(usize) -> f64) -> f64 {
 /// `--nocapture`): 0.05–0.21 dB below one stream where 256² tiles lose 0.33–0.73.
 #[test]
 fn code_blocks_under_one_transform_on_shared_dems() {
-    let Some(dir) = support::shared_dem("code_blocks_under_one_transform_on_shared_dems") else {
-        return;
-    };
-    for name in [
-        "srtm3_n57e011",
-        "sthelens_10m",
-        "alps_montblanc",
-        "srtm3_utm32_f32",
-    ] {
-        let path = dir.join(name).join(format!("{name}.tif"));
-        let raster = read_dem(&path, &ReadOptions::default()).unwrap();
+    for (name, raster) in seam_dems("code_blocks_under_one_transform_on_shared_dems") {
         let budget = (0.25 * raster.len() as f64 / 8.0) as u64;
         let options = EncodeOptions::new(Quality::Lossless, Some(budget)).with_tile_size(None);
         let whole = encode(&raster, &options).unwrap();
