@@ -283,7 +283,7 @@ fn neighbour_sum<K: Known + ?Sized>(grid: &FlagGrid, known: &K, at: At) -> u64 {
 }
 
 /// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
-#[inline]
+#[inline(always)]
 pub(super) fn refinement_context<K: Known + ?Sized>(
     contexts: &Contexts,
     grid: &FlagGrid,
