@@ -1343,14 +1343,22 @@ impl<S: Store> Decoder<S> {
     /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
     /// are known.
     pub fn integer_coefficients(mut self) -> S {
-        self.map_significant(|v, p| {
-            let extra = (((1u64 << p) - 1) / 2) as i32;
-            if v < 0 {
-                v - extra
-            } else {
-                v + extra
-            }
-        });
+        // Known to plane 1 or lower, a value is its own midpoint ((2^p − 1) / 2 = 0):
+        // a decode that knows every band that far (every complete one) keeps them all.
+        let exact = self
+            .all_band_planes()
+            .iter()
+            .all(|planes| planes.settled <= 1 && planes.partial.is_none_or(|(p, _)| p <= 1));
+        if !exact {
+            self.map_significant(|v, p| {
+                let extra = (((1u64 << p) - 1) / 2) as i32;
+                if v < 0 {
+                    v - extra
+                } else {
+                    v + extra
+                }
+            });
+        }
         self.values
     }
 

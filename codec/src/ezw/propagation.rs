@@ -45,12 +45,16 @@ pub(super) fn scan<S: Side>(
                 let len = (sub.width - chunk).min(64);
                 let live = ones(len);
                 let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
-                let near = significant_near(grid, sub, y, chunk, len) & !significant;
-                if near == 0 {
+                // The cheaper test first: candidates need a significant parent.
+                let parent_significant = parent_significant(grid, parent_row, chunk, len);
+                if parent_significant & live & !significant == 0 {
                     continue;
                 }
-                let parent_significant = parent_significant(grid, parent_row, chunk, len);
+                let near = significant_near(grid, sub, y, chunk, len) & !significant;
                 let mut todo = near & parent_significant & live;
+                if todo == 0 {
+                    continue;
+                }
                 let mut visited = 0u64;
                 while todo != 0 {
                     let k = todo.trailing_zeros() as usize;
