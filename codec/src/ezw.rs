@@ -220,10 +220,10 @@ trait Side {
 }
 
 /// The scans' state beside the known coefficients (a coefficient is significant when
-/// its known value is not 0): bitmaps, one bit per coefficient with rows padded to whole
-/// 64-bit words, that let the scans jump straight to the coefficients that need a
-/// decision: `sig_bits` (significant) and `zt_bits` (the zerotree coverage of the
-/// current pass).
+/// its known value is not 0): bitmaps, one bit per coefficient, band after band, each
+/// band row padded to whole 64-bit words (so a scan's 64-coefficient chunk is one
+/// word), that let the scans jump straight to the coefficients that need a decision:
+/// `sig_bits` (significant) and `zt_bits` (the zerotree coverage of the current pass).
 #[derive(Debug, Clone)]
 struct FlagGrid {
     /// Width and height of the coefficient array.
@@ -236,32 +236,41 @@ struct FlagGrid {
     prop_bits: Vec<u64>,
     /// Significant coefficients in each band.
     significant_in_band: Vec<u32>,
-    words_per_row: usize,
+    /// Each band's first word in the bitmaps and words per row.
+    band_words: Vec<(usize, usize)>,
 }
 
 impl FlagGrid {
     fn new(layout: &CoefficientLayout, coder: Coder) -> FlagGrid {
-        let (width, height) = (layout.width, layout.height);
-        let words_per_row = width.div_ceil(64);
+        let mut words = 0;
+        let band_words = (layout.bands.iter())
+            .map(|band| {
+                let (first, per_row) = (words, band.sub.width.div_ceil(64));
+                words += per_row * band.sub.height;
+                (first, per_row)
+            })
+            .collect();
         FlagGrid {
-            width,
-            height,
-            sig_bits: vec![0; words_per_row * height],
-            zt_bits: vec![0; words_per_row * height],
+            width: layout.width,
+            height: layout.height,
+            sig_bits: vec![0; words],
+            zt_bits: vec![0; words],
             prop_bits: if coder.propagates() {
-                vec![0; words_per_row * height]
+                vec![0; words]
             } else {
                 Vec::new()
             },
             significant_in_band: vec![0; layout.bands.len()],
-            words_per_row,
+            band_words,
         }
     }
 
-    /// Bit index of coefficient (x, y) in the bitmaps.
+    /// Bit index of coefficient (x, y) of band `b` (in the band's coordinates) in the
+    /// bitmaps.
     #[inline]
-    fn bit(&self, x: usize, y: usize) -> usize {
-        y * self.words_per_row * 64 + x
+    fn bit(&self, b: usize, x: usize, y: usize) -> usize {
+        let (first, per_row) = self.band_words[b];
+        (first + y * per_row) * 64 + x
     }
 
     /// Index of the neighbour at (dx, dy) of coefficient `at`, if inside the array.
@@ -277,36 +286,21 @@ impl FlagGrid {
     }
 }
 
-/// `len` (1..=64) bits of `words` starting at bit `start`, in the low bits.
-#[inline]
-fn extract_bits(words: &[u64], start: usize, len: usize) -> u64 {
-    let (w, o) = (start / 64, start % 64);
-    let mut v = words[w] >> o;
-    if o > 0 && o + len > 64 {
-        v |= words[w + 1] << (64 - o);
-    }
-    if len < 64 {
-        v & ((1u64 << len) - 1)
-    } else {
-        v
-    }
+/// The `len` (1..=64) bits of `words` from bit `start`, in the low bits: a chunk of a
+/// band row, which starts a word, or the 32-bit half word (`len` ≤ 32) of a parent row
+/// that a chunk's children read; either way inside one word.
+#[inline(always)]
+fn chunk_bits(words: &[u64], start: usize, len: usize) -> u64 {
+    debug_assert!(start % 64 + len <= 64);
+    (words[start / 64] >> (start % 64)) & ones(len)
 }
 
-/// Writes the low `len` (1..=64) bits of `value` at bit `start` of `words`.
-#[inline]
-fn deposit_bits(words: &mut [u64], start: usize, len: usize, value: u64) {
-    let mask = if len < 64 {
-        (1u64 << len) - 1
-    } else {
-        u64::MAX
-    };
-    let value = value & mask;
-    let (w, o) = (start / 64, start % 64);
-    words[w] = (words[w] & !(mask << o)) | (value << o);
-    if o > 0 && o + len > 64 {
-        let high = mask >> (64 - o);
-        words[w + 1] = (words[w + 1] & !high) | (value >> (64 - o));
-    }
+/// Stores the low `len` (1..=64) bits of `value` as the chunk of a band row at bit
+/// `start` (which starts a word; the rest of the word is the row's padding).
+#[inline(always)]
+fn store_chunk(words: &mut [u64], start: usize, len: usize, value: u64) {
+    debug_assert!(start.is_multiple_of(64));
+    words[start / 64] = value & ones(len);
 }
 
 /// Doubles every bit of `x`: bit k goes to bits 2k and 2k + 1 (parent → two children).
@@ -323,6 +317,8 @@ fn spread_bits(x: u32) -> u64 {
 
 /// Where a band's parents are, resolved once per pass.
 struct ParentBand {
+    /// The parent band's number.
+    band: usize,
     x0: usize,
     y0: usize,
     width: usize,
@@ -366,11 +362,18 @@ struct BandRow {
 }
 
 impl BandRow {
-    fn new(grid: &FlagGrid, sub: Subband, y: usize, width: usize, height: usize) -> BandRow {
+    /// Row `y` of band `b`, `sub`, of an array `width` × `height`.
+    fn new(
+        grid: &FlagGrid,
+        b: usize,
+        sub: Subband,
+        y: usize,
+        (width, height): (usize, usize),
+    ) -> BandRow {
         let gy = sub.y0 + y;
         BandRow {
             index: gy * width + sub.x0,
-            bit: grid.bit(sub.x0, gy),
+            bit: grid.bit(b, 0, y),
             x0: sub.x0,
             interior_row: (1..height - 1).contains(&gy),
             width,
@@ -415,20 +418,11 @@ fn scan_pass<S: Side>(
     subordinate_scan(layout, grid, contexts, side, n)
 }
 
-/// Clears the zerotree coverage of a band that takes no part in pass `n`: it covers
-/// none of its children.
-fn clear_coverage(grid: &mut FlagGrid, sub: Subband) {
-    for y in 0..sub.height {
-        let row = grid.bit(sub.x0, sub.y0 + y);
-        for chunk in (0..sub.width).step_by(64) {
-            deposit_bits(
-                &mut grid.zt_bits,
-                row + chunk,
-                (sub.width - chunk).min(64),
-                0,
-            );
-        }
-    }
+/// Clears the zerotree coverage of band `b`, `height` rows, which takes no part in
+/// pass `n`: it covers none of its children.
+fn clear_coverage(grid: &mut FlagGrid, b: usize, height: usize) {
+    let (first, per_row) = grid.band_words[b];
+    grid.zt_bits[first..first + per_row * height].fill(0);
 }
 
 /// Where band `band`'s parents are in pass `n`, if it has parents taking part.
@@ -436,6 +430,7 @@ fn parent_band(layout: &CoefficientLayout, band: &Band, n: u32) -> Option<Parent
     let pb = band.parent?;
     let ps = layout.bands[pb].sub;
     Some(ParentBand {
+        band: pb,
         x0: ps.x0,
         y0: ps.y0,
         width: ps.width,
@@ -455,7 +450,7 @@ fn parent_row(
     let pb = parent?;
     let py = if pb.halve { y / 2 } else { y };
     (py < pb.height).then(|| ParentRow {
-        bit: grid.bit(pb.x0, pb.y0 + py),
+        bit: grid.bit(pb.band, 0, py),
         index: (pb.y0 + py) * width + pb.x0,
         width: pb.width,
         halve: pb.halve,
@@ -541,32 +536,32 @@ fn dominant_scan<S: Side>(
             continue;
         }
         let Some(p) = band.plane_in_pass(n) else {
-            clear_coverage(grid, sub);
+            clear_coverage(grid, b, sub.height);
             continue;
         };
         let parent = parent_band(layout, band, n);
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
                     Some(pr) if pr.halve && chunk / 2 < pr.width => {
                         let plen = (pr.width - chunk / 2).min(32);
-                        spread_bits(extract_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
+                        spread_bits(chunk_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
                     }
                     Some(pr) if !pr.halve && chunk < pr.width => {
-                        extract_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
+                        chunk_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
                     }
                     _ => 0,
                 };
                 let live = ones(len);
                 let covered = covered & live;
-                let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
                 let visited = if grid.prop_bits.is_empty() {
                     0
                 } else {
-                    extract_bits(&grid.prop_bits, row.bit + chunk, len)
+                    chunk_bits(&grid.prop_bits, row.bit + chunk, len)
                 };
                 let mut todo = live & !covered & !significant;
                 // Significant coefficients pass their parent's zerotree on; new roots
@@ -595,7 +590,7 @@ fn dominant_scan<S: Side>(
                         let coded = code_significance(grid, contexts, side, site);
                         match coded {
                             None => {
-                                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                                store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
                                 return ScanEnd::Stopped;
                             }
                             Some((true, _)) => continue,
@@ -605,12 +600,12 @@ fn dominant_scan<S: Side>(
                     };
                     let root = side.zerotree_root(at.index, n, &mut contexts.zerotree[zctx]);
                     if side.stopped() {
-                        deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                        store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     roots |= (root as u64) << k;
                 }
-                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
             }
         }
     }
@@ -633,10 +628,10 @@ fn subordinate_scan<S: Side>(
         };
         let sub = band.sub;
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
-                let mut todo = extract_bits(&grid.sig_bits, row.bit + chunk, len);
+                let mut todo = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
                 while todo != 0 {
                     let x = chunk + todo.trailing_zeros() as usize;
                     todo &= todo - 1;

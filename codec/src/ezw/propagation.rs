@@ -12,7 +12,7 @@
 //! where they now lose at most 0.01.
 
 use super::{
-    code_significance, deposit_bits, extract_bits, ones, parent_band, parent_row, BandRow,
+    chunk_bits, code_significance, ones, parent_band, parent_row, store_chunk, BandRow,
     CoefficientLayout, Contexts, FlagGrid, ScanEnd, Side, Site,
 };
 
@@ -39,18 +39,18 @@ pub(super) fn scan<S: Side>(
             continue;
         }
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let live = ones(len);
-                let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
                 // The cheaper test first: candidates need a significant parent.
                 let parent_significant = parent_significant(grid, parent_row, chunk, len);
                 if parent_significant & live & !significant == 0 {
                     continue;
                 }
-                let near = significant_near(grid, sub, y, chunk, len) & !significant;
+                let near = significant_near(grid, b, sub, y, chunk, len) & !significant;
                 let mut todo = near & parent_significant & live;
                 if todo == 0 {
                     continue;
@@ -81,7 +81,7 @@ pub(super) fn scan<S: Side>(
                         Some((false, _)) => {}
                     }
                 }
-                deposit_bits(&mut grid.prop_bits, row.bit + chunk, len, visited);
+                store_chunk(&mut grid.prop_bits, row.bit + chunk, len, visited);
             }
         }
     }
@@ -106,7 +106,7 @@ fn parent_significant(
         let bits = if plen == 0 {
             0
         } else {
-            extract_bits(&grid.sig_bits, pr.bit + chunk / 2, plen)
+            chunk_bits(&grid.sig_bits, pr.bit + chunk / 2, plen)
         };
         ((2 * plen).min(len), super::spread_bits(bits as u32))
     } else {
@@ -114,30 +114,31 @@ fn parent_significant(
         let bits = if plen == 0 {
             0
         } else {
-            extract_bits(&grid.sig_bits, pr.bit + chunk, plen)
+            chunk_bits(&grid.sig_bits, pr.bit + chunk, plen)
         };
         (plen, bits)
     };
     significant | !ones(with_parent)
 }
 
-/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `sub` that have
+/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `b` (`sub`) that have
 /// a significant neighbour (of the 8) inside the band.
 #[inline]
 fn significant_near(
     grid: &FlagGrid,
+    b: usize,
     sub: crate::wavelet::Subband,
     y: usize,
     chunk: usize,
     len: usize,
 ) -> u64 {
     let bit_at = |x: usize, y: usize| {
-        let i = grid.bit(sub.x0 + x, sub.y0 + y);
+        let i = grid.bit(b, x, y);
         grid.sig_bits[i / 64] >> (i % 64) & 1
     };
     let mut near = 0u64;
     for ny in y.saturating_sub(1)..(y + 2).min(sub.height) {
-        let row = extract_bits(&grid.sig_bits, grid.bit(sub.x0 + chunk, sub.y0 + ny), len);
+        let row = chunk_bits(&grid.sig_bits, grid.bit(b, chunk, ny), len);
         near |= row | row << 1 | row >> 1;
         if chunk > 0 {
             near |= bit_at(chunk - 1, ny);
