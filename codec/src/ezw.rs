@@ -286,21 +286,21 @@ impl FlagGrid {
     }
 }
 
-/// The `len` (1..=64) bits of `words` from bit `start`, in the low bits: a chunk of a
-/// band row, which starts a word, or the 32-bit half word (`len` ≤ 32) of a parent row
-/// that a chunk's children read; either way inside one word.
+/// The bits of `words` from bit `start` to the end of its word, in the low bits: a
+/// chunk of a band row, which starts a word, or a halved parent row's chunk, the
+/// 32-bit half word at `start`. Bits past a row's end read as 0: the bitmaps only ever
+/// hold bits of coefficients.
 #[inline(always)]
-fn chunk_bits(words: &[u64], start: usize, len: usize) -> u64 {
-    debug_assert!(start % 64 + len <= 64);
-    (words[start / 64] >> (start % 64)) & ones(len)
+fn chunk_bits(words: &[u64], start: usize) -> u64 {
+    words[start / 64] >> (start % 64)
 }
 
-/// Stores the low `len` (1..=64) bits of `value` as the chunk of a band row at bit
-/// `start` (which starts a word; the rest of the word is the row's padding).
+/// Stores `value`, bits of the chunk's coefficients only (`len` of them), as the chunk
+/// of a band row at bit `start` (which starts a word).
 #[inline(always)]
 fn store_chunk(words: &mut [u64], start: usize, len: usize, value: u64) {
-    debug_assert!(start.is_multiple_of(64));
-    words[start / 64] = value & ones(len);
+    debug_assert!(start.is_multiple_of(64) && value & !ones(len) == 0);
+    words[start / 64] = value;
 }
 
 /// Doubles every bit of `x`: bit k goes to bits 2k and 2k + 1 (parent → two children).
@@ -459,13 +459,9 @@ fn parent_row(
 }
 
 /// Mask of `len` (≤ 64) ones.
-#[inline]
+#[inline(always)]
 fn ones(len: usize) -> u64 {
-    if len < 64 {
-        (1u64 << len) - 1
-    } else {
-        u64::MAX
-    }
+    u64::MAX.checked_shr(64 - len as u32).unwrap_or(0)
 }
 
 /// Where a significance decision is coded: the coefficient, its band (and the band's
@@ -547,21 +543,20 @@ fn dominant_scan<S: Side>(
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
                     Some(pr) if pr.halve && chunk / 2 < pr.width => {
-                        let plen = (pr.width - chunk / 2).min(32);
-                        spread_bits(chunk_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
+                        spread_bits(chunk_bits(&grid.zt_bits, pr.bit + chunk / 2) as u32)
                     }
                     Some(pr) if !pr.halve && chunk < pr.width => {
-                        chunk_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
+                        chunk_bits(&grid.zt_bits, pr.bit + chunk)
                     }
                     _ => 0,
                 };
                 let live = ones(len);
                 let covered = covered & live;
-                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk);
                 let visited = if grid.prop_bits.is_empty() {
                     0
                 } else {
-                    chunk_bits(&grid.prop_bits, row.bit + chunk, len)
+                    chunk_bits(&grid.prop_bits, row.bit + chunk)
                 };
                 let mut todo = live & !covered & !significant;
                 // Significant coefficients pass their parent's zerotree on; new roots
@@ -626,12 +621,14 @@ fn subordinate_scan<S: Side>(
         let Some(p) = band.plane_in_pass(n) else {
             continue;
         };
+        if grid.significant_in_band[b] == 0 {
+            continue;
+        }
         let sub = band.sub;
         for y in 0..sub.height {
             let row = BandRow::new(grid, b, sub, y, (w, h));
             for chunk in (0..sub.width).step_by(64) {
-                let len = (sub.width - chunk).min(64);
-                let mut todo = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
+                let mut todo = chunk_bits(&grid.sig_bits, row.bit + chunk);
                 while todo != 0 {
                     let x = chunk + todo.trailing_zeros() as usize;
                     todo &= todo - 1;

@@ -44,7 +44,7 @@ pub(super) fn scan<S: Side>(
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let live = ones(len);
-                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk, len);
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk);
                 // The cheaper test first: candidates need a significant parent.
                 let parent_significant = parent_significant(grid, parent_row, chunk, len);
                 if parent_significant & live & !significant == 0 {
@@ -106,7 +106,7 @@ fn parent_significant(
         let bits = if plen == 0 {
             0
         } else {
-            chunk_bits(&grid.sig_bits, pr.bit + chunk / 2, plen)
+            chunk_bits(&grid.sig_bits, pr.bit + chunk / 2)
         };
         ((2 * plen).min(len), super::spread_bits(bits as u32))
     } else {
@@ -114,7 +114,7 @@ fn parent_significant(
         let bits = if plen == 0 {
             0
         } else {
-            chunk_bits(&grid.sig_bits, pr.bit + chunk, plen)
+            chunk_bits(&grid.sig_bits, pr.bit + chunk)
         };
         (plen, bits)
     };
@@ -138,7 +138,7 @@ fn significant_near(
     };
     let mut near = 0u64;
     for ny in y.saturating_sub(1)..(y + 2).min(sub.height) {
-        let row = chunk_bits(&grid.sig_bits, grid.bit(b, chunk, ny), len);
+        let row = chunk_bits(&grid.sig_bits, grid.bit(b, chunk, ny));
         near |= row | row << 1 | row >> 1;
         if chunk > 0 {
             near |= bit_at(chunk - 1, ny);
