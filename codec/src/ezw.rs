@@ -173,19 +173,6 @@ impl CoefficientLayout {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-
-    /// Flat index of the parent of the coefficient at (x, y) relative to band `b`.
-    #[inline]
-    fn parent_index(&self, b: usize, x: usize, y: usize) -> Option<usize> {
-        let pb = &self.bands[self.bands[b].parent?];
-        let (px, py) = if self.bands[b].halve {
-            (x / 2, y / 2)
-        } else {
-            (x, y)
-        };
-        (px < pb.sub.width && py < pb.sub.height)
-            .then(|| (pb.sub.y0 + py) * self.width + pb.sub.x0 + px)
-    }
 }
 
 /// What differs between encoding and decoding a scan.
@@ -209,8 +196,6 @@ trait Side {
     fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool);
     /// Records refinement bit `bit` at plane `p` of coefficient `i`.
     fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool);
-    /// Sign of a coefficient already significant.
-    fn is_negative(&self, i: usize) -> bool;
     /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
     /// plane `p` is refined).
     fn known_above(&self, i: usize, p: u32) -> u32;
@@ -744,21 +729,10 @@ struct EncoderSide<'a, B: BitSink> {
     band_weights: &'a [f64],
     /// Reconstruction currently implied for every coefficient, as magnitude bits known.
     squared_error: f64,
-    budget: Option<usize>,
-    over_budget: bool,
+    /// The encoder stops once it has produced more bytes than this (`usize::MAX`: never).
+    budget: usize,
     midpoint: Midpoint,
     checkpoints: Checkpoints,
-}
-
-impl<B: BitSink> EncoderSide<'_, B> {
-    #[inline]
-    fn check_budget(&mut self) {
-        if let Some(limit) = self.budget {
-            if self.sink.bytes_so_far() > limit {
-                self.over_budget = true;
-            }
-        }
-    }
 }
 
 impl<B: BitSink> Side for EncoderSide<'_, B> {
@@ -767,40 +741,36 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i].unsigned_abs() >> p != 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn sign(&mut self, i: usize, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i] < 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn zerotree_root(&mut self, i: usize, n: u32, model: &mut BitModel) -> bool {
         let root = self.descendants[i] & (1u64 << n) == 0;
         self.sink.encode(root, model);
-        self.check_budget();
         root
     }
     #[inline]
     fn refinement(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = (self.coefficients[i].unsigned_abs() >> p) & 1 != 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn raw_refinement(&mut self, i: usize, p: u32) -> bool {
         let bit = (self.coefficients[i].unsigned_abs() >> p) & 1 != 0;
         self.sink.encode_raw(bit);
-        self.check_budget();
         bit
     }
     #[inline]
     fn stopped(&self) -> bool {
-        self.over_budget
+        // The bytes produced only grow: once over, always over.
+        self.sink.bytes_so_far() > self.budget
     }
     #[inline]
     fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool) {
@@ -827,10 +797,6 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         self.squared_error += (after * after - before * before) * self.band_weights[band];
         self.checkpoints
             .observe(self.sink.bytes_so_far(), self.squared_error);
-    }
-    #[inline]
-    fn is_negative(&self, i: usize) -> bool {
-        self.coefficients[i] < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
@@ -870,21 +836,26 @@ fn global_plane(c: i32, shift: u32) -> Option<u32> {
     (m != 0).then(|| m.ilog2() + shift)
 }
 
-/// Computes the descendant plane masks bottom-up.
+/// Computes the descendant plane masks bottom-up, band by band, row by row.
 fn descendant_masks(layout: &CoefficientLayout, coefficients: &[i32]) -> Vec<u64> {
+    let w = layout.width;
     let mut masks = vec![0u64; coefficients.len()];
-    for (b, band) in layout.bands.iter().enumerate().rev() {
-        if band.parent.is_none() {
+    for band in layout.bands.iter().rev() {
+        let Some(pb) = band.parent else {
             continue;
-        }
-        let sub = band.sub;
-        for y in 0..sub.height {
-            for x in 0..sub.width {
-                let i = (sub.y0 + y) * layout.width + sub.x0 + x;
-                if let Some(pi) = layout.parent_index(b, x, y) {
-                    let own = global_plane(coefficients[i], band.shift).map_or(0, |g| 1u64 << g);
-                    masks[pi] |= own | masks[i];
-                }
+        };
+        let (sub, parents) = (band.sub, layout.bands[pb].sub);
+        // Parents at (x >> halve, y >> halve); coefficients past the parent band have none.
+        let halve = u32::from(band.halve);
+        let rows = sub.height.min(parents.height << halve);
+        let columns = sub.width.min(parents.width << halve);
+        for y in 0..rows {
+            let row = (sub.y0 + y) * w + sub.x0;
+            let parent_row = (parents.y0 + (y >> halve)) * w + parents.x0;
+            for x in 0..columns {
+                let i = row + x;
+                let own = global_plane(coefficients[i], band.shift).map_or(0, |g| 1u64 << g);
+                masks[parent_row + (x >> halve)] |= own | masks[i];
             }
         }
     }
@@ -953,8 +924,7 @@ pub fn encode(
         descendants: &descendants,
         band_weights,
         squared_error: initial_error,
-        budget: budget.map(|b| b + 8),
-        over_budget: false,
+        budget: budget.map_or(usize::MAX, |b| b + 8),
         midpoint,
         checkpoints: Checkpoints::default(),
     };
@@ -1054,8 +1024,7 @@ fn measuring_side<'a, B: BitSink>(
         descendants,
         band_weights,
         squared_error: 0.0,
-        budget: None,
-        over_budget: false,
+        budget: usize::MAX,
         midpoint: Midpoint::Integer,
         checkpoints: Checkpoints::default(),
     }
@@ -1162,10 +1131,6 @@ impl<S: Store, V: View<S>> Side for DecoderSide<'_, S, V> {
         if bit {
             self.values.grow(i, p);
         }
-    }
-    #[inline]
-    fn is_negative(&self, i: usize) -> bool {
-        V::of(&self.values).at(i) < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {

@@ -172,10 +172,10 @@ const SIGN_VALUE: [i32; 3] = [0, 1, -1];
 /// the array), 1 = +, 2 = −.
 #[inline]
 fn sign_state<S: Side>(side: &S, j: Option<usize>) -> usize {
-    match j {
-        Some(j) if significant(side.known(), j) => 1 + side.is_negative(j) as usize,
-        _ => 0,
-    }
+    j.map_or(0, |j| {
+        let v = side.known().at(j);
+        usize::from(v != 0) + usize::from(v < 0)
+    })
 }
 
 /// Whether coefficient `j` is significant: its known value is not 0.
