@@ -34,8 +34,16 @@ pub(super) fn scan<S: Side>(
             continue;
         };
         let parent = parent_band(layout, band, n);
-        // No coefficient of the band has a significant neighbour.
-        if grid.significant_in_band[b] == 0 {
+        // No coefficient of the band has a significant neighbour, or every one has a
+        // parent and none of them is significant.
+        if grid.significant_in_band[b] == 0
+            || parent.as_ref().is_some_and(|pb| {
+                let h = u32::from(pb.halve);
+                grid.significant_in_band[pb.band] == 0
+                    && sub.width <= pb.width << h
+                    && sub.height <= pb.height << h
+            })
+        {
             continue;
         }
         for y in 0..sub.height {
@@ -90,7 +98,9 @@ pub(super) fn scan<S: Side>(
 
 /// The coefficients of columns `chunk .. chunk + len` whose parent is significant, or
 /// that have no parent taking part in the pass (no zerotree can cover them then): all
-/// of them when the row has none, those past the parent row's end otherwise.
+/// of them when the row has none, those past the parent row's end otherwise. Bits past
+/// `len` are arbitrary.
+#[inline(always)]
 fn parent_significant(
     grid: &FlagGrid,
     parent_row: Option<super::ParentRow>,
@@ -101,29 +111,25 @@ fn parent_significant(
         return u64::MAX;
     };
     // Columns of this chunk with a parent, and their parents' significance.
-    let (with_parent, significant) = if pr.halve {
+    if pr.halve {
         let plen = pr.width.saturating_sub(chunk / 2).min(32);
-        let bits = if plen == 0 {
-            0
-        } else {
-            chunk_bits(&grid.sig_bits, pr.bit + chunk / 2)
-        };
-        ((2 * plen).min(len), super::spread_bits(bits as u32))
+        if plen == 0 {
+            return u64::MAX;
+        }
+        let bits = chunk_bits(&grid.sig_bits, pr.bit + chunk / 2) as u32;
+        super::spread_bits(bits) | !ones(2 * plen)
     } else {
         let plen = pr.width.saturating_sub(chunk).min(len);
-        let bits = if plen == 0 {
-            0
-        } else {
-            chunk_bits(&grid.sig_bits, pr.bit + chunk)
-        };
-        (plen, bits)
-    };
-    significant | !ones(with_parent)
+        if plen == 0 {
+            return u64::MAX;
+        }
+        chunk_bits(&grid.sig_bits, pr.bit + chunk) | !ones(plen)
+    }
 }
 
-/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `b` (`sub`) that have
-/// a significant neighbour (of the 8) inside the band.
-#[inline]
+/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `b` (`sub`)
+/// that have a significant neighbour (of the 8) inside the band.
+#[inline(always)]
 fn significant_near(
     grid: &FlagGrid,
     b: usize,
@@ -132,19 +138,19 @@ fn significant_near(
     chunk: usize,
     len: usize,
 ) -> u64 {
-    let bit_at = |x: usize, y: usize| {
-        let i = grid.bit(b, x, y);
-        grid.sig_bits[i / 64] >> (i % 64) & 1
-    };
+    let bits = &grid.sig_bits;
     let mut near = 0u64;
     for ny in y.saturating_sub(1)..(y + 2).min(sub.height) {
-        let row = chunk_bits(&grid.sig_bits, grid.bit(b, chunk, ny));
+        let word = grid.bit(b, chunk, ny) / 64;
+        let row = bits[word];
         near |= row | row << 1 | row >> 1;
+        // The last column of the chunk before, the first of the chunk after (this
+        // chunk is then 64 wide).
         if chunk > 0 {
-            near |= bit_at(chunk - 1, ny);
+            near |= bits[word - 1] >> 63;
         }
         if chunk + len < sub.width {
-            near |= bit_at(chunk + len, ny) << (len - 1);
+            near |= bits[word + 1] << 63;
         }
     }
     near & ones(len)
