@@ -338,12 +338,10 @@ impl ParentRow {
 struct BandRow {
     index: usize,
     bit: usize,
-    /// The band's first column in the coefficient array.
-    x0: usize,
-    /// Whether the row is neither the array's first nor its last.
-    interior_row: bool,
-    /// Width of the coefficient array.
-    width: usize,
+    /// The row's columns whose 8 neighbours are all inside the array: from `inner_from`,
+    /// `inner_len` of them.
+    inner_from: usize,
+    inner_len: usize,
 }
 
 impl BandRow {
@@ -356,12 +354,18 @@ impl BandRow {
         (width, height): (usize, usize),
     ) -> BandRow {
         let gy = sub.y0 + y;
+        // Array columns 1 ..= width − 2 of rows 1 ..= height − 2.
+        let inner_from = usize::from(sub.x0 == 0);
+        let inner_to = if (1..height - 1).contains(&gy) {
+            (width - 1).saturating_sub(sub.x0)
+        } else {
+            0
+        };
         BandRow {
             index: gy * width + sub.x0,
             bit: grid.bit(b, 0, y),
-            x0: sub.x0,
-            interior_row: (1..height - 1).contains(&gy),
-            width,
+            inner_from,
+            inner_len: inner_to.saturating_sub(inner_from),
         }
     }
 
@@ -371,7 +375,7 @@ impl BandRow {
         At {
             index: self.index + x,
             x,
-            interior: self.interior_row && (1..self.width - 1).contains(&(self.x0 + x)),
+            interior: x.wrapping_sub(self.inner_from) < self.inner_len,
         }
     }
 }
