@@ -261,7 +261,9 @@ pub struct ArithmeticDecoder<'a> {
     chunk_bits: u32,
     range: u32,
     code: u32,
-    complete: bool,
+    /// Bytes consumed up to which every decision is exact: `len`, or `usize::MAX` for a
+    /// complete stream (its zero padding is genuine).
+    trusted: usize,
 }
 
 impl<'a> ArithmeticDecoder<'a> {
@@ -306,7 +308,7 @@ impl<'a> ArithmeticDecoder<'a> {
             chunk_bits,
             range: u32::MAX,
             code: 0,
-            complete,
+            trusted: if complete { usize::MAX } else { len },
         };
         for _ in 0..4 {
             decoder.code = (decoder.code << 8) | decoder.next_byte() as u32;
@@ -331,7 +333,7 @@ impl<'a> ArithmeticDecoder<'a> {
     /// returned while this was still false is exact.
     #[inline]
     pub fn exhausted(&self) -> bool {
-        !self.complete && self.pos > self.len
+        self.pos > self.trusted
     }
 
     #[inline]

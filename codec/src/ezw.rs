@@ -173,19 +173,6 @@ impl CoefficientLayout {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-
-    /// Flat index of the parent of the coefficient at (x, y) relative to band `b`.
-    #[inline]
-    fn parent_index(&self, b: usize, x: usize, y: usize) -> Option<usize> {
-        let pb = &self.bands[self.bands[b].parent?];
-        let (px, py) = if self.bands[b].halve {
-            (x / 2, y / 2)
-        } else {
-            (x, y)
-        };
-        (px < pb.sub.width && py < pb.sub.height)
-            .then(|| (pb.sub.y0 + py) * self.width + pb.sub.x0 + px)
-    }
 }
 
 /// What differs between encoding and decoding a scan.
@@ -209,8 +196,6 @@ trait Side {
     fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool);
     /// Records refinement bit `bit` at plane `p` of coefficient `i`.
     fn commit_refinement(&mut self, i: usize, band: usize, p: u32, bit: bool);
-    /// Sign of a coefficient already significant.
-    fn is_negative(&self, i: usize) -> bool;
     /// The magnitude bits of coefficient `i` above plane `p` (known to both sides when
     /// plane `p` is refined).
     fn known_above(&self, i: usize, p: u32) -> u32;
@@ -220,10 +205,10 @@ trait Side {
 }
 
 /// The scans' state beside the known coefficients (a coefficient is significant when
-/// its known value is not 0): bitmaps, one bit per coefficient with rows padded to whole
-/// 64-bit words, that let the scans jump straight to the coefficients that need a
-/// decision: `sig_bits` (significant) and `zt_bits` (the zerotree coverage of the
-/// current pass).
+/// its known value is not 0): bitmaps, one bit per coefficient, band after band, each
+/// band row padded to whole 64-bit words (so a scan's 64-coefficient chunk is one
+/// word), that let the scans jump straight to the coefficients that need a decision:
+/// `sig_bits` (significant) and `zt_bits` (the zerotree coverage of the current pass).
 #[derive(Debug, Clone)]
 struct FlagGrid {
     /// Width and height of the coefficient array.
@@ -236,32 +221,41 @@ struct FlagGrid {
     prop_bits: Vec<u64>,
     /// Significant coefficients in each band.
     significant_in_band: Vec<u32>,
-    words_per_row: usize,
+    /// Each band's first word in the bitmaps and words per row.
+    band_words: Vec<(usize, usize)>,
 }
 
 impl FlagGrid {
     fn new(layout: &CoefficientLayout, coder: Coder) -> FlagGrid {
-        let (width, height) = (layout.width, layout.height);
-        let words_per_row = width.div_ceil(64);
+        let mut words = 0;
+        let band_words = (layout.bands.iter())
+            .map(|band| {
+                let (first, per_row) = (words, band.sub.width.div_ceil(64));
+                words += per_row * band.sub.height;
+                (first, per_row)
+            })
+            .collect();
         FlagGrid {
-            width,
-            height,
-            sig_bits: vec![0; words_per_row * height],
-            zt_bits: vec![0; words_per_row * height],
+            width: layout.width,
+            height: layout.height,
+            sig_bits: vec![0; words],
+            zt_bits: vec![0; words],
             prop_bits: if coder.propagates() {
-                vec![0; words_per_row * height]
+                vec![0; words]
             } else {
                 Vec::new()
             },
             significant_in_band: vec![0; layout.bands.len()],
-            words_per_row,
+            band_words,
         }
     }
 
-    /// Bit index of coefficient (x, y) in the bitmaps.
+    /// Bit index of coefficient (x, y) of band `b` (in the band's coordinates) in the
+    /// bitmaps.
     #[inline]
-    fn bit(&self, x: usize, y: usize) -> usize {
-        y * self.words_per_row * 64 + x
+    fn bit(&self, b: usize, x: usize, y: usize) -> usize {
+        let (first, per_row) = self.band_words[b];
+        (first + y * per_row) * 64 + x
     }
 
     /// Index of the neighbour at (dx, dy) of coefficient `at`, if inside the array.
@@ -277,36 +271,21 @@ impl FlagGrid {
     }
 }
 
-/// `len` (1..=64) bits of `words` starting at bit `start`, in the low bits.
-#[inline]
-fn extract_bits(words: &[u64], start: usize, len: usize) -> u64 {
-    let (w, o) = (start / 64, start % 64);
-    let mut v = words[w] >> o;
-    if o > 0 && o + len > 64 {
-        v |= words[w + 1] << (64 - o);
-    }
-    if len < 64 {
-        v & ((1u64 << len) - 1)
-    } else {
-        v
-    }
+/// The bits of `words` from bit `start` to the end of its word, in the low bits: a
+/// chunk of a band row, which starts a word, or a halved parent row's chunk, the
+/// 32-bit half word at `start`. Bits past a row's end read as 0: the bitmaps only ever
+/// hold bits of coefficients.
+#[inline(always)]
+fn chunk_bits(words: &[u64], start: usize) -> u64 {
+    words[start / 64] >> (start % 64)
 }
 
-/// Writes the low `len` (1..=64) bits of `value` at bit `start` of `words`.
-#[inline]
-fn deposit_bits(words: &mut [u64], start: usize, len: usize, value: u64) {
-    let mask = if len < 64 {
-        (1u64 << len) - 1
-    } else {
-        u64::MAX
-    };
-    let value = value & mask;
-    let (w, o) = (start / 64, start % 64);
-    words[w] = (words[w] & !(mask << o)) | (value << o);
-    if o > 0 && o + len > 64 {
-        let high = mask >> (64 - o);
-        words[w + 1] = (words[w + 1] & !high) | (value >> (64 - o));
-    }
+/// Stores `value`, bits of the chunk's coefficients only (`len` of them), as the chunk
+/// of a band row at bit `start` (which starts a word).
+#[inline(always)]
+fn store_chunk(words: &mut [u64], start: usize, len: usize, value: u64) {
+    debug_assert!(start.is_multiple_of(64) && value & !ones(len) == 0);
+    words[start / 64] = value;
 }
 
 /// Doubles every bit of `x`: bit k goes to bits 2k and 2k + 1 (parent → two children).
@@ -323,6 +302,8 @@ fn spread_bits(x: u32) -> u64 {
 
 /// Where a band's parents are, resolved once per pass.
 struct ParentBand {
+    /// The parent band's number.
+    band: usize,
     x0: usize,
     y0: usize,
     width: usize,
@@ -357,23 +338,34 @@ impl ParentRow {
 struct BandRow {
     index: usize,
     bit: usize,
-    /// The band's first column in the coefficient array.
-    x0: usize,
-    /// Whether the row is neither the array's first nor its last.
-    interior_row: bool,
-    /// Width of the coefficient array.
-    width: usize,
+    /// The row's columns whose 8 neighbours are all inside the array: from `inner_from`,
+    /// `inner_len` of them.
+    inner_from: usize,
+    inner_len: usize,
 }
 
 impl BandRow {
-    fn new(grid: &FlagGrid, sub: Subband, y: usize, width: usize, height: usize) -> BandRow {
+    /// Row `y` of band `b`, `sub`, of an array `width` × `height`.
+    fn new(
+        grid: &FlagGrid,
+        b: usize,
+        sub: Subband,
+        y: usize,
+        (width, height): (usize, usize),
+    ) -> BandRow {
         let gy = sub.y0 + y;
+        // Array columns 1 ..= width − 2 of rows 1 ..= height − 2.
+        let inner_from = usize::from(sub.x0 == 0);
+        let inner_to = if (1..height - 1).contains(&gy) {
+            (width - 1).saturating_sub(sub.x0)
+        } else {
+            0
+        };
         BandRow {
             index: gy * width + sub.x0,
-            bit: grid.bit(sub.x0, gy),
-            x0: sub.x0,
-            interior_row: (1..height - 1).contains(&gy),
-            width,
+            bit: grid.bit(b, 0, y),
+            inner_from,
+            inner_len: inner_to.saturating_sub(inner_from),
         }
     }
 
@@ -383,7 +375,7 @@ impl BandRow {
         At {
             index: self.index + x,
             x,
-            interior: self.interior_row && (1..self.width - 1).contains(&(self.x0 + x)),
+            interior: x.wrapping_sub(self.inner_from) < self.inner_len,
         }
     }
 }
@@ -415,20 +407,11 @@ fn scan_pass<S: Side>(
     subordinate_scan(layout, grid, contexts, side, n)
 }
 
-/// Clears the zerotree coverage of a band that takes no part in pass `n`: it covers
-/// none of its children.
-fn clear_coverage(grid: &mut FlagGrid, sub: Subband) {
-    for y in 0..sub.height {
-        let row = grid.bit(sub.x0, sub.y0 + y);
-        for chunk in (0..sub.width).step_by(64) {
-            deposit_bits(
-                &mut grid.zt_bits,
-                row + chunk,
-                (sub.width - chunk).min(64),
-                0,
-            );
-        }
-    }
+/// Clears the zerotree coverage of band `b`, `height` rows, which takes no part in
+/// pass `n`: it covers none of its children.
+fn clear_coverage(grid: &mut FlagGrid, b: usize, height: usize) {
+    let (first, per_row) = grid.band_words[b];
+    grid.zt_bits[first..first + per_row * height].fill(0);
 }
 
 /// Where band `band`'s parents are in pass `n`, if it has parents taking part.
@@ -436,6 +419,7 @@ fn parent_band(layout: &CoefficientLayout, band: &Band, n: u32) -> Option<Parent
     let pb = band.parent?;
     let ps = layout.bands[pb].sub;
     Some(ParentBand {
+        band: pb,
         x0: ps.x0,
         y0: ps.y0,
         width: ps.width,
@@ -455,7 +439,7 @@ fn parent_row(
     let pb = parent?;
     let py = if pb.halve { y / 2 } else { y };
     (py < pb.height).then(|| ParentRow {
-        bit: grid.bit(pb.x0, pb.y0 + py),
+        bit: grid.bit(pb.band, 0, py),
         index: (pb.y0 + py) * width + pb.x0,
         width: pb.width,
         halve: pb.halve,
@@ -464,13 +448,9 @@ fn parent_row(
 }
 
 /// Mask of `len` (≤ 64) ones.
-#[inline]
+#[inline(always)]
 fn ones(len: usize) -> u64 {
-    if len < 64 {
-        (1u64 << len) - 1
-    } else {
-        u64::MAX
-    }
+    u64::MAX.checked_shr(64 - len as u32).unwrap_or(0)
 }
 
 /// Where a significance decision is coded: the coefficient, its band (and the band's
@@ -541,32 +521,31 @@ fn dominant_scan<S: Side>(
             continue;
         }
         let Some(p) = band.plane_in_pass(n) else {
-            clear_coverage(grid, sub);
+            clear_coverage(grid, b, sub.height);
             continue;
         };
         let parent = parent_band(layout, band, n);
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let covered = match parent_row {
                     Some(pr) if pr.halve && chunk / 2 < pr.width => {
-                        let plen = (pr.width - chunk / 2).min(32);
-                        spread_bits(extract_bits(&grid.zt_bits, pr.bit + chunk / 2, plen) as u32)
+                        spread_bits(chunk_bits(&grid.zt_bits, pr.bit + chunk / 2) as u32)
                     }
                     Some(pr) if !pr.halve && chunk < pr.width => {
-                        extract_bits(&grid.zt_bits, pr.bit + chunk, (pr.width - chunk).min(64))
+                        chunk_bits(&grid.zt_bits, pr.bit + chunk)
                     }
                     _ => 0,
                 };
                 let live = ones(len);
                 let covered = covered & live;
-                let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk);
                 let visited = if grid.prop_bits.is_empty() {
                     0
                 } else {
-                    extract_bits(&grid.prop_bits, row.bit + chunk, len)
+                    chunk_bits(&grid.prop_bits, row.bit + chunk)
                 };
                 let mut todo = live & !covered & !significant;
                 // Significant coefficients pass their parent's zerotree on; new roots
@@ -595,7 +574,7 @@ fn dominant_scan<S: Side>(
                         let coded = code_significance(grid, contexts, side, site);
                         match coded {
                             None => {
-                                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                                store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
                                 return ScanEnd::Stopped;
                             }
                             Some((true, _)) => continue,
@@ -605,12 +584,12 @@ fn dominant_scan<S: Side>(
                     };
                     let root = side.zerotree_root(at.index, n, &mut contexts.zerotree[zctx]);
                     if side.stopped() {
-                        deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                        store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
                         return ScanEnd::Stopped;
                     }
                     roots |= (root as u64) << k;
                 }
-                deposit_bits(&mut grid.zt_bits, row.bit + chunk, len, roots);
+                store_chunk(&mut grid.zt_bits, row.bit + chunk, len, roots);
             }
         }
     }
@@ -631,12 +610,14 @@ fn subordinate_scan<S: Side>(
         let Some(p) = band.plane_in_pass(n) else {
             continue;
         };
+        if grid.significant_in_band[b] == 0 {
+            continue;
+        }
         let sub = band.sub;
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             for chunk in (0..sub.width).step_by(64) {
-                let len = (sub.width - chunk).min(64);
-                let mut todo = extract_bits(&grid.sig_bits, row.bit + chunk, len);
+                let mut todo = chunk_bits(&grid.sig_bits, row.bit + chunk);
                 while todo != 0 {
                     let x = chunk + todo.trailing_zeros() as usize;
                     todo &= todo - 1;
@@ -752,21 +733,10 @@ struct EncoderSide<'a, B: BitSink> {
     band_weights: &'a [f64],
     /// Reconstruction currently implied for every coefficient, as magnitude bits known.
     squared_error: f64,
-    budget: Option<usize>,
-    over_budget: bool,
+    /// The encoder stops once it has produced more bytes than this (`usize::MAX`: never).
+    budget: usize,
     midpoint: Midpoint,
     checkpoints: Checkpoints,
-}
-
-impl<B: BitSink> EncoderSide<'_, B> {
-    #[inline]
-    fn check_budget(&mut self) {
-        if let Some(limit) = self.budget {
-            if self.sink.bytes_so_far() > limit {
-                self.over_budget = true;
-            }
-        }
-    }
 }
 
 impl<B: BitSink> Side for EncoderSide<'_, B> {
@@ -775,40 +745,36 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
     fn significance(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i].unsigned_abs() >> p != 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn sign(&mut self, i: usize, model: &mut BitModel) -> bool {
         let bit = self.coefficients[i] < 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn zerotree_root(&mut self, i: usize, n: u32, model: &mut BitModel) -> bool {
         let root = self.descendants[i] & (1u64 << n) == 0;
         self.sink.encode(root, model);
-        self.check_budget();
         root
     }
     #[inline]
     fn refinement(&mut self, i: usize, p: u32, model: &mut BitModel) -> bool {
         let bit = (self.coefficients[i].unsigned_abs() >> p) & 1 != 0;
         self.sink.encode(bit, model);
-        self.check_budget();
         bit
     }
     #[inline]
     fn raw_refinement(&mut self, i: usize, p: u32) -> bool {
         let bit = (self.coefficients[i].unsigned_abs() >> p) & 1 != 0;
         self.sink.encode_raw(bit);
-        self.check_budget();
         bit
     }
     #[inline]
     fn stopped(&self) -> bool {
-        self.over_budget
+        // The bytes produced only grow: once over, always over.
+        self.sink.bytes_so_far() > self.budget
     }
     #[inline]
     fn commit_significant(&mut self, i: usize, band: usize, p: u32, negative: bool) {
@@ -835,10 +801,6 @@ impl<B: BitSink> Side for EncoderSide<'_, B> {
         self.squared_error += (after * after - before * before) * self.band_weights[band];
         self.checkpoints
             .observe(self.sink.bytes_so_far(), self.squared_error);
-    }
-    #[inline]
-    fn is_negative(&self, i: usize) -> bool {
-        self.coefficients[i] < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
@@ -878,21 +840,26 @@ fn global_plane(c: i32, shift: u32) -> Option<u32> {
     (m != 0).then(|| m.ilog2() + shift)
 }
 
-/// Computes the descendant plane masks bottom-up.
+/// Computes the descendant plane masks bottom-up, band by band, row by row.
 fn descendant_masks(layout: &CoefficientLayout, coefficients: &[i32]) -> Vec<u64> {
+    let w = layout.width;
     let mut masks = vec![0u64; coefficients.len()];
-    for (b, band) in layout.bands.iter().enumerate().rev() {
-        if band.parent.is_none() {
+    for band in layout.bands.iter().rev() {
+        let Some(pb) = band.parent else {
             continue;
-        }
-        let sub = band.sub;
-        for y in 0..sub.height {
-            for x in 0..sub.width {
-                let i = (sub.y0 + y) * layout.width + sub.x0 + x;
-                if let Some(pi) = layout.parent_index(b, x, y) {
-                    let own = global_plane(coefficients[i], band.shift).map_or(0, |g| 1u64 << g);
-                    masks[pi] |= own | masks[i];
-                }
+        };
+        let (sub, parents) = (band.sub, layout.bands[pb].sub);
+        // Parents at (x >> halve, y >> halve); coefficients past the parent band have none.
+        let halve = u32::from(band.halve);
+        let rows = sub.height.min(parents.height << halve);
+        let columns = sub.width.min(parents.width << halve);
+        for y in 0..rows {
+            let row = (sub.y0 + y) * w + sub.x0;
+            let parent_row = (parents.y0 + (y >> halve)) * w + parents.x0;
+            for x in 0..columns {
+                let i = row + x;
+                let own = global_plane(coefficients[i], band.shift).map_or(0, |g| 1u64 << g);
+                masks[parent_row + (x >> halve)] |= own | masks[i];
             }
         }
     }
@@ -961,8 +928,7 @@ pub fn encode(
         descendants: &descendants,
         band_weights,
         squared_error: initial_error,
-        budget: budget.map(|b| b + 8),
-        over_budget: false,
+        budget: budget.map_or(usize::MAX, |b| b + 8),
         midpoint,
         checkpoints: Checkpoints::default(),
     };
@@ -1062,8 +1028,7 @@ fn measuring_side<'a, B: BitSink>(
         descendants,
         band_weights,
         squared_error: 0.0,
-        budget: None,
-        over_budget: false,
+        budget: usize::MAX,
         midpoint: Midpoint::Integer,
         checkpoints: Checkpoints::default(),
     }
@@ -1170,10 +1135,6 @@ impl<S: Store, V: View<S>> Side for DecoderSide<'_, S, V> {
         if bit {
             self.values.grow(i, p);
         }
-    }
-    #[inline]
-    fn is_negative(&self, i: usize) -> bool {
-        V::of(&self.values).at(i) < 0
     }
     #[inline]
     fn known_above(&self, i: usize, p: u32) -> u32 {
@@ -1343,14 +1304,22 @@ impl<S: Store> Decoder<S> {
     /// Integer reconstruction (5/3): mid-interval, rounded down; exact where all bits
     /// are known.
     pub fn integer_coefficients(mut self) -> S {
-        self.map_significant(|v, p| {
-            let extra = (((1u64 << p) - 1) / 2) as i32;
-            if v < 0 {
-                v - extra
-            } else {
-                v + extra
-            }
-        });
+        // Known to plane 1 or lower, a value is its own midpoint ((2^p − 1) / 2 = 0):
+        // a decode that knows every band that far (every complete one) keeps them all.
+        let exact = self
+            .all_band_planes()
+            .iter()
+            .all(|planes| planes.settled <= 1 && planes.partial.is_none_or(|(p, _)| p <= 1));
+        if !exact {
+            self.map_significant(|v, p| {
+                let extra = (((1u64 << p) - 1) / 2) as i32;
+                if v < 0 {
+                    v - extra
+                } else {
+                    v + extra
+                }
+            });
+        }
         self.values
     }
 

@@ -172,10 +172,10 @@ const SIGN_VALUE: [i32; 3] = [0, 1, -1];
 /// the array), 1 = +, 2 = −.
 #[inline]
 fn sign_state<S: Side>(side: &S, j: Option<usize>) -> usize {
-    match j {
-        Some(j) if significant(side.known(), j) => 1 + side.is_negative(j) as usize,
-        _ => 0,
-    }
+    j.map_or(0, |j| {
+        let v = side.known().at(j);
+        usize::from(v != 0) + usize::from(v < 0)
+    })
 }
 
 /// Whether coefficient `j` is significant: its known value is not 0.
@@ -221,9 +221,14 @@ pub(super) fn dominant_contexts<S: Side>(
     parent_row: Option<ParentRow>,
 ) -> (usize, usize) {
     let choice = contexts.choice;
+    // The parent's plane in the pass and known magnitude, when significant.
     let parent = parent_row
-        .and_then(|pr| Some((pr, pr.index + pr.column(at.x)?)))
-        .filter(|&(_, j)| choice.parent && significant(side.known(), j));
+        .filter(|_| choice.parent)
+        .and_then(|pr| {
+            let j = pr.index + pr.column(at.x)?;
+            Some((pr.plane, side.known().at(j).unsigned_abs()))
+        })
+        .filter(|&(_, m)| m != 0);
     match contexts.coder {
         Coder::V1 => {
             let parent_sig = parent.is_some() as usize;
@@ -243,9 +248,8 @@ pub(super) fn dominant_contexts<S: Side>(
             } else {
                 0
             };
-            let parent = parent.map_or(0, |(pr, j)| {
-                let known = side.known().at(j).unsigned_abs();
-                1 + log_level((known >> pr.plane) as u64 >> 2, PARENT_LEVELS - 1)
+            let parent = parent.map_or(0, |(plane, known)| {
+                1 + log_level((known >> plane) as u64 >> 2, PARENT_LEVELS - 1)
             });
             let ctx = (class * ACTIVITY_LEVELS + activity) * PARENT_LEVELS + parent;
             (ctx, ctx)
@@ -283,7 +287,7 @@ fn neighbour_sum<K: Known + ?Sized>(grid: &FlagGrid, known: &K, at: At) -> u64 {
 }
 
 /// The refinement model index of coefficient `at` at plane `p` (`age` 0 or 1).
-#[inline]
+#[inline(always)]
 pub(super) fn refinement_context<K: Known + ?Sized>(
     contexts: &Contexts,
     grid: &FlagGrid,

@@ -12,7 +12,7 @@
 //! where they now lose at most 0.01.
 
 use super::{
-    code_significance, deposit_bits, extract_bits, ones, parent_band, parent_row, BandRow,
+    chunk_bits, code_significance, ones, parent_band, parent_row, store_chunk, BandRow,
     CoefficientLayout, Contexts, FlagGrid, ScanEnd, Side, Site,
 };
 
@@ -34,23 +34,35 @@ pub(super) fn scan<S: Side>(
             continue;
         };
         let parent = parent_band(layout, band, n);
-        // No coefficient of the band has a significant neighbour.
-        if grid.significant_in_band[b] == 0 {
+        // No coefficient of the band has a significant neighbour, or every one has a
+        // parent and none of them is significant.
+        if grid.significant_in_band[b] == 0
+            || parent.as_ref().is_some_and(|pb| {
+                let h = u32::from(pb.halve);
+                grid.significant_in_band[pb.band] == 0
+                    && sub.width <= pb.width << h
+                    && sub.height <= pb.height << h
+            })
+        {
             continue;
         }
         for y in 0..sub.height {
-            let row = BandRow::new(grid, sub, y, w, h);
+            let row = BandRow::new(grid, b, sub, y, (w, h));
             let parent_row = parent_row(grid, parent.as_ref(), y, w);
             for chunk in (0..sub.width).step_by(64) {
                 let len = (sub.width - chunk).min(64);
                 let live = ones(len);
-                let significant = extract_bits(&grid.sig_bits, row.bit + chunk, len);
-                let near = significant_near(grid, sub, y, chunk, len) & !significant;
-                if near == 0 {
+                let significant = chunk_bits(&grid.sig_bits, row.bit + chunk);
+                // The cheaper test first: candidates need a significant parent.
+                let parent_significant = parent_significant(grid, parent_row, chunk, len);
+                if parent_significant & live & !significant == 0 {
                     continue;
                 }
-                let parent_significant = parent_significant(grid, parent_row, chunk, len);
+                let near = significant_near(grid, b, sub, y, chunk, len) & !significant;
                 let mut todo = near & parent_significant & live;
+                if todo == 0 {
+                    continue;
+                }
                 let mut visited = 0u64;
                 while todo != 0 {
                     let k = todo.trailing_zeros() as usize;
@@ -77,7 +89,7 @@ pub(super) fn scan<S: Side>(
                         Some((false, _)) => {}
                     }
                 }
-                deposit_bits(&mut grid.prop_bits, row.bit + chunk, len, visited);
+                store_chunk(&mut grid.prop_bits, row.bit + chunk, len, visited);
             }
         }
     }
@@ -86,7 +98,9 @@ pub(super) fn scan<S: Side>(
 
 /// The coefficients of columns `chunk .. chunk + len` whose parent is significant, or
 /// that have no parent taking part in the pass (no zerotree can cover them then): all
-/// of them when the row has none, those past the parent row's end otherwise.
+/// of them when the row has none, those past the parent row's end otherwise. Bits past
+/// `len` are arbitrary.
+#[inline(always)]
 fn parent_significant(
     grid: &FlagGrid,
     parent_row: Option<super::ParentRow>,
@@ -97,49 +111,46 @@ fn parent_significant(
         return u64::MAX;
     };
     // Columns of this chunk with a parent, and their parents' significance.
-    let (with_parent, significant) = if pr.halve {
+    if pr.halve {
         let plen = pr.width.saturating_sub(chunk / 2).min(32);
-        let bits = if plen == 0 {
-            0
-        } else {
-            extract_bits(&grid.sig_bits, pr.bit + chunk / 2, plen)
-        };
-        ((2 * plen).min(len), super::spread_bits(bits as u32))
+        if plen == 0 {
+            return u64::MAX;
+        }
+        let bits = chunk_bits(&grid.sig_bits, pr.bit + chunk / 2) as u32;
+        super::spread_bits(bits) | !ones(2 * plen)
     } else {
         let plen = pr.width.saturating_sub(chunk).min(len);
-        let bits = if plen == 0 {
-            0
-        } else {
-            extract_bits(&grid.sig_bits, pr.bit + chunk, plen)
-        };
-        (plen, bits)
-    };
-    significant | !ones(with_parent)
+        if plen == 0 {
+            return u64::MAX;
+        }
+        chunk_bits(&grid.sig_bits, pr.bit + chunk) | !ones(plen)
+    }
 }
 
-/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `sub` that have
-/// a significant neighbour (of the 8) inside the band.
-#[inline]
+/// The coefficients of columns `chunk .. chunk + len` of row `y` of band `b` (`sub`)
+/// that have a significant neighbour (of the 8) inside the band.
+#[inline(always)]
 fn significant_near(
     grid: &FlagGrid,
+    b: usize,
     sub: crate::wavelet::Subband,
     y: usize,
     chunk: usize,
     len: usize,
 ) -> u64 {
-    let bit_at = |x: usize, y: usize| {
-        let i = grid.bit(sub.x0 + x, sub.y0 + y);
-        grid.sig_bits[i / 64] >> (i % 64) & 1
-    };
+    let bits = &grid.sig_bits;
     let mut near = 0u64;
     for ny in y.saturating_sub(1)..(y + 2).min(sub.height) {
-        let row = extract_bits(&grid.sig_bits, grid.bit(sub.x0 + chunk, sub.y0 + ny), len);
+        let word = grid.bit(b, chunk, ny) / 64;
+        let row = bits[word];
         near |= row | row << 1 | row >> 1;
+        // The last column of the chunk before, the first of the chunk after (this
+        // chunk is then 64 wide).
         if chunk > 0 {
-            near |= bit_at(chunk - 1, ny);
+            near |= bits[word - 1] >> 63;
         }
         if chunk + len < sub.width {
-            near |= bit_at(chunk + len, ny) << (len - 1);
+            near |= bits[word + 1] << 63;
         }
     }
     near & ones(len)

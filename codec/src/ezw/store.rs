@@ -196,6 +196,23 @@ impl<const ESCAPES: bool> Store for Narrow<ESCAPES> {
     fn zeroed(n: usize) -> Self {
         Narrow::with_shift(n, 0)
     }
+    /// In the slot itself when neither the old nor the new value is escaped (nearly
+    /// always), else as [`Store::set`] of the grown value.
+    #[inline(always)]
+    fn grow(&mut self, i: usize, p: u32) {
+        let slot = self.slots.values[i];
+        if let Some(unit) = p.checked_sub(self.slots.shift) {
+            let (v, step) = (i32::from(slot), 1i32 << unit);
+            if let Ok(grown) = i16::try_from(if v < 0 { v - step } else { v + step }) {
+                if !ESCAPES || !(is_escape(slot) | is_escape(grown)) {
+                    self.slots.values[i] = grown;
+                    return;
+                }
+            }
+        }
+        let v = self.at(i);
+        self.set(i, if v < 0 { v - (1 << p) } else { v + (1 << p) });
+    }
     #[inline(always)]
     fn set(&mut self, i: usize, v: i32) {
         let shift = self.slots.shift;
