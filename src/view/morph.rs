@@ -29,7 +29,7 @@ use glam::DVec3;
 
 use super::camera::View;
 use super::incremental::{after, camera_motion, round_down, stays_above};
-use super::selection::{blend_of_ratio, Rule, ViewTerrain};
+use super::selection::{blend_of_ratio, z_order, Rule, ViewTerrain};
 use crate::mesh::cells::CellTree;
 use crate::mesh::pyramid::{node_bounds, Diagonal};
 use crate::mesh::GridMesh;
@@ -47,21 +47,36 @@ pub struct MorphScratch {
     /// before that).
     samples: Vec<f64>,
     /// Blend factor of every split node this frame, index `m − 1` for level `m`, row by
-    /// row (meaningless for nodes that did not split).
+    /// row ([`UNSPLIT`] for nodes that did not split).
     blends: Vec<Vec<f32>>,
+    /// Per level (as `blends`), the row-major indices of the nodes that split in the
+    /// last frame (their blends are reset to [`UNSPLIT`] before the level is morphed).
+    was_split: Vec<Vec<u32>>,
     /// Per node (as `blends`), the camera motion up to which its ratio stays at least 2
     /// (blend 1), rounded down to an `f32` (so looked at again slightly early, never
     /// late); below `travelled` when unknown.
     settled: Vec<Vec<f32>>,
     /// Camera motion accumulated since the state started (see [`camera_motion`]).
     travelled: f64,
-    /// The split nodes of the level being morphed, `(i, j)` row by row.
-    split: Vec<(u32, u32)>,
+    /// The split nodes of the level being morphed, row by row.
+    split: Vec<SplitNode>,
     /// The last frame's view, and what the state belongs to.
     last: Option<View>,
     owner: Option<Owner>,
     /// Corners of the terrain's bounding box.
     extent: [DVec3; 8],
+}
+
+/// The blend factor held for a node that did not split (any negative value: a split
+/// node's factor is in [0, 1]).
+const UNSPLIT: f32 = -1.0;
+
+/// A split node of the level being morphed: its column, row and Z-order index.
+#[derive(Debug, Clone, Copy)]
+struct SplitNode {
+    i: u32,
+    j: u32,
+    z: usize,
 }
 
 /// The terrain and rule a [`MorphScratch`] holds state for.
@@ -87,9 +102,7 @@ pub fn morph(
 ) -> Vec<f64> {
     scratch.advance(terrain, view, rule, tree);
     for m in (1..=terrain.levels()).rev() {
-        scratch.split.clear();
-        let listed = tree.split_nodes(m).map(|(i, j)| (i as u32, j as u32));
-        scratch.split.extend(listed);
+        scratch.list_split(tree, m);
         scratch.level_blends(terrain, view, rule, tree, m);
         scratch.level_vertices(terrain, tree, m);
     }
@@ -107,9 +120,15 @@ impl MorphScratch {
                 + v.capacity() * std::mem::size_of::<Vec<f32>>()
         };
         self.samples.capacity() * std::mem::size_of::<f64>()
-            + self.split.capacity() * std::mem::size_of::<(u32, u32)>()
+            + self.split.capacity() * std::mem::size_of::<SplitNode>()
             + nested(&self.blends)
             + nested(&self.settled)
+            + self
+                .was_split
+                .iter()
+                .map(|l| l.capacity() * 4)
+                .sum::<usize>()
+            + self.was_split.capacity() * std::mem::size_of::<Vec<u32>>()
     }
 
     /// Moves the state to `view` (from scratch for another terrain, rule or projection).
@@ -125,6 +144,8 @@ impl MorphScratch {
             self.samples.clear();
             self.samples.extend_from_slice(heights.values);
             self.last = None;
+            self.blends.clear();
+            self.was_split.clear();
             let (lo, hi) = terrain.extent();
             self.extent = [0, 1, 2, 3, 4, 5, 6, 7].map(|k| {
                 DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo)
@@ -142,16 +163,36 @@ impl MorphScratch {
             self.settled.clear();
         }
         self.blends.resize(levels, Vec::new());
+        self.was_split.resize(levels, Vec::new());
         self.settled.resize(levels, Vec::new());
         for m in 1..=levels {
             let (nw, nh) = tree.nodes(m as u32);
-            self.blends[m - 1].resize(nw * nh, 0.0);
+            self.blends[m - 1].resize(nw * nh, UNSPLIT);
             self.settled[m - 1].resize(nw * nh, f32::NEG_INFINITY);
         }
     }
 
+    /// Lists the split nodes of level `m` with their Z-order indices (a row's half of the
+    /// index computed once).
+    fn list_split(&mut self, tree: &CellTree, m: u32) {
+        self.split.clear();
+        let mut row = (usize::MAX, 0);
+        for (i, j) in tree.split_nodes(m) {
+            if row.0 != j {
+                row = (j, z_order(0, j));
+            }
+            let z = z_order(i, 0) | row.1;
+            self.split.push(SplitNode {
+                i: i as u32,
+                j: j as u32,
+                z,
+            });
+        }
+    }
+
     /// The blend factor of every split node of level `m` (1 for void ones, and for those
-    /// still settled), evaluating the others and settling those at blend 1. The nodes'
+    /// still settled), evaluating the others and settling those at blend 1; the nodes
+    /// that split in the last frame and no longer do get [`UNSPLIT`]. The nodes'
     /// summaries are stored in Z order and read here row by row, so each is prefetched
     /// [`PREFETCH_AHEAD`] nodes before its evaluation.
     fn level_blends(
@@ -163,20 +204,27 @@ impl MorphScratch {
         m: u32,
     ) {
         let nw = tree.nodes(m).0;
-        let (blends, settled) = (
-            &mut self.blends[m as usize - 1],
-            &mut self.settled[m as usize - 1],
+        let level = m as usize - 1;
+        let (blends, settled, was_split) = (
+            &mut self.blends[level],
+            &mut self.settled[level],
+            &mut self.was_split[level],
         );
-        for (n, &(i, j)) in self.split.iter().enumerate() {
-            if let Some(&(pi, pj)) = self.split.get(n + PREFETCH_AHEAD) {
-                terrain.prefetch_node(m, pi as usize, pj as usize);
+        for &k in was_split.iter() {
+            blends[k as usize] = UNSPLIT;
+        }
+        was_split.clear();
+        for (n, node) in self.split.iter().enumerate() {
+            if let Some(ahead) = self.split.get(n + PREFETCH_AHEAD) {
+                terrain.prefetch_node(m, ahead.z);
             }
-            let (i, j) = (i as usize, j as usize);
+            let (i, j) = (node.i as usize, node.j as usize);
             let k = j * nw + i;
+            was_split.push(k as u32);
             blends[k] = if f64::from(settled[k]) > self.travelled || terrain.is_void(m, i, j) {
                 1.0
             } else {
-                let b = blend_of_ratio(terrain.ratio(view, rule, m, i, j));
+                let b = blend_of_ratio(terrain.ratio_at(view, rule, m, i, j, node.z));
                 if b >= 1.0 {
                     let node = terrain.evaluate(view, rule, m, i, j);
                     settled[k] = round_down(after(self.travelled, stays_above(rule, node, 2.0)));
@@ -197,11 +245,14 @@ impl MorphScratch {
         let half = 1usize << (m - 1);
         let nw = tree.nodes(m).0;
         let blends = &self.blends[m as usize - 1];
-        let blend = |i: usize, j: usize| {
-            if tree.is_split(m, i, j) {
-                f64::from(blends[j * nw + i])
+        // The blend factor of the node at `k`, 0 where it does not split.
+        let blend = |k: usize| f64::from(blends[k]).max(0.0);
+        // Where a node is clipped by the grid's edge its midpoint is off centre.
+        let at = |mid: usize, lo: usize, hi: usize| {
+            if hi - lo == 2 * half {
+                0.5
             } else {
-                0.0
+                (mid - lo) as f64 / (hi - lo) as f64
             }
         };
         let mut out = Vertices {
@@ -209,46 +260,38 @@ impl MorphScratch {
             truth: heights.values,
             width: w,
         };
-        for &(i, j) in &self.split {
-            let (i, j) = (i as usize, j as usize);
+        for node in &self.split {
+            let (i, j) = (node.i as usize, node.j as usize);
+            let k = j * nw + i;
             let (x0, y0, x1, y1) = node_bounds(w, h, m, i, j);
             let (xm, ym) = (x0 + half, y0 + half);
-            let own = f64::from(blends[j * nw + i]);
-            let u = (xm - x0) as f64 / (x1 - x0) as f64;
-            let v = (ym - y0) as f64 / (y1 - y0) as f64;
+            let own = f64::from(blends[k]);
+            let (u, v) = (at(xm, x0, x1), at(ym, y0, y1));
             if xm < x1 {
-                if j == 0 || !tree.is_split(m, i, j - 1) {
-                    let b = if j == 0 {
-                        own
-                    } else {
-                        own.min(blend(i, j - 1))
-                    };
+                if j == 0 || blends[k - nw] < 0.0 {
+                    let b = if j == 0 { own } else { own.min(blend(k - nw)) };
                     out.edge((xm, y0), [(x0, y0), (x1, y0)], u, b);
                 }
                 let b = if y1 + 1 < h {
-                    own.min(blend(i, j + 1))
+                    own.min(blend(k + nw))
                 } else {
                     own
                 };
                 out.edge((xm, y1), [(x0, y1), (x1, y1)], u, b);
             }
             if ym < y1 {
-                if i == 0 || !tree.is_split(m, i - 1, j) {
-                    let b = if i == 0 {
-                        own
-                    } else {
-                        own.min(blend(i - 1, j))
-                    };
+                if i == 0 || blends[k - 1] < 0.0 {
+                    let b = if i == 0 { own } else { own.min(blend(k - 1)) };
                     out.edge((x0, ym), [(x0, y0), (x0, y1)], v, b);
                 }
                 let b = if x1 + 1 < w {
-                    own.min(blend(i + 1, j))
+                    own.min(blend(k + 1))
                 } else {
                     own
                 };
                 out.edge((x1, ym), [(x1, y0), (x1, y1)], v, b);
                 if xm < x1 {
-                    let diagonal = || terrain.diagonal(m, i, j);
+                    let diagonal = || terrain.diagonal_at(m, node.z);
                     out.centre((xm, ym), (x0, y0, x1, y1), diagonal, (u, v), own);
                 }
             }

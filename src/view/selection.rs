@@ -297,10 +297,24 @@ impl<'a> ViewTerrain<'a> {
     /// the square root is monotone and correctly rounded, and halving is exact).
     #[inline]
     pub fn ratio(&self, view: &View, rule: Rule, level: u32, i: usize, j: usize) -> f64 {
+        self.ratio_at(view, rule, level, i, j, z_order(i, j))
+    }
+
+    /// [`ViewTerrain::ratio`] of node `(level, i, j)` whose Z-order index is `z`.
+    #[inline]
+    pub(super) fn ratio_at(
+        &self,
+        view: &View,
+        rule: Rule,
+        level: u32,
+        i: usize,
+        j: usize,
+        z: usize,
+    ) -> f64 {
         let Rule::ScreenSpace { tau } = rule else {
             return self.evaluate(view, rule, level, i, j).ratio;
         };
-        let summary = self.nodes[level as usize - 1][z_order(i, j)];
+        let summary = self.nodes[level as usize - 1][z];
         let error = f64::from(summary.error);
         let (lo, hi) = self.box_of(level, i, j, summary);
         let clearance = view.frustum_clearance(lo, hi);
@@ -360,11 +374,12 @@ impl<'a> ViewTerrain<'a> {
         }
     }
 
-    /// Asks the processor to bring the summary of node `(level, i, j)` (`level ≥ 1`) into
-    /// the cache ahead of its evaluation (a hint: nothing else changes).
+    /// Asks the processor to bring the summary of the node of level `level` (≥ 1) whose
+    /// Z-order index is `z` into the cache ahead of its evaluation (a hint: nothing else
+    /// changes).
     #[inline]
-    pub fn prefetch_node(&self, level: u32, i: usize, j: usize) {
-        if let Some(summary) = self.nodes[level as usize - 1].get(z_order(i, j)) {
+    pub(super) fn prefetch_node(&self, level: u32, z: usize) {
+        if let Some(summary) = self.nodes[level as usize - 1].get(z) {
             prefetch_read(summary);
         }
     }
@@ -386,7 +401,14 @@ impl<'a> ViewTerrain<'a> {
     /// The diagonal node `(level, i, j)` (`level ≥ 1`) is cut along.
     #[inline]
     pub fn diagonal(&self, level: u32, i: usize, j: usize) -> Diagonal {
-        if self.rising[level as usize - 1][z_order(i, j)] {
+        self.diagonal_at(level, z_order(i, j))
+    }
+
+    /// The diagonal the node of level `level` (≥ 1) whose Z-order index is `z` is cut
+    /// along.
+    #[inline]
+    pub(super) fn diagonal_at(&self, level: u32, z: usize) -> Diagonal {
+        if self.rising[level as usize - 1][z] {
             Diagonal::Rising
         } else {
             Diagonal::Falling
