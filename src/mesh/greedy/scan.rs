@@ -400,9 +400,11 @@ fn row_max_error<H: Height>(heights: &[H], start: f64, gx: f64) -> f64 {
 /// triangles are a few samples long); longer ones by the 4-lane kernel and a search.
 const SHORT_ROW: usize = 8;
 
-/// Largest [`row_error`] over a row and the first column reaching it.
+/// Largest [`row_error`] over a row and the first column reaching it, when that error
+/// is above `floor` (a long row's column is searched only then: most rows of a large
+/// triangle do not beat the worst of the rows read before them).
 #[inline]
-fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, usize) {
+fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64, floor: f64) -> Option<(f64, usize)> {
     if heights.len() < SHORT_ROW {
         let (mut max, mut at) = (-1.0, 0);
         for (k, &h) in heights.iter().enumerate() {
@@ -411,15 +413,19 @@ fn row_worst<H: Height>(heights: &[H], start: f64, gx: f64) -> (f64, usize) {
                 (max, at) = (e, k);
             }
         }
-        return (max.max(0.0), at);
+        let max = max.max(0.0);
+        return (max > floor).then_some((max, at));
     }
     let max = row_max_error(heights, start, gx);
+    if max <= floor {
+        return None;
+    }
     let at = heights
         .iter()
         .enumerate()
         .position(|(k, &h)| row_error(start, gx, k as f64, h) == max)
         .unwrap_or(0);
-    (max, at)
+    Some((max, at))
 }
 
 /// Largest error and sum of squared errors of `start + gx·k` against a row. Rows of
@@ -508,7 +514,8 @@ fn assess_midpoint<H: Height>(grid: &Grid<H>, v: [Vertex; 3]) -> Assessment {
         };
     }
     let (s, plane) = (grid.sample((x, y)), Plane::through(v));
-    let (error, _) = row_worst(&grid.heights[s..=s], plane.at(x, y), plane.gx);
+    let (error, _) =
+        row_worst(&grid.heights[s..=s], plane.at(x, y), plane.gx, -1.0).unwrap_or((0.0, 0));
     Assessment {
         error,
         candidate: s as u32,
@@ -605,8 +612,7 @@ fn read_within<H: Height>(
         {
             let first = row + lo as usize;
             let heights = &grid.heights[first..=row + hi as usize];
-            let (max, at) = row_worst(heights, plane.at(lo, y), plane.gx);
-            if max > error {
+            if let Some((max, at)) = row_worst(heights, plane.at(lo, y), plane.gx, error) {
                 (error, candidate) = (max, (first + at) as u32);
             }
         }
@@ -1135,6 +1141,52 @@ mod tests {
         assert_eq!(a.candidate as usize, 2 * w + 1);
         assert_eq!(a.error, 3.0);
         assert!(!a.touches_void);
+    }
+
+    #[test]
+    fn assess_matches_a_sample_by_sample_reading() {
+        // Integer heights (ties between rows and within long rows), large and small
+        // triangles: the worst error to the bit and the first sample reaching it.
+        let (w, h) = (48, 40);
+        let mut state = 7u64;
+        let mut next = |n: u64| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) % n
+        };
+        let heights: Vec<f64> = (0..w * h).map(|_| next(9) as f64).collect();
+        let valid = bitvec![u64, Lsb0; 1; w * h];
+        let g = grid(w, h, &heights, &valid);
+        for _ in 0..3000 {
+            let mut p = [0; 3].map(|_| (next(w as u64) as i64, next(h as u64) as i64));
+            if twice_area(p) < 0 {
+                p.swap(1, 2);
+            }
+            if twice_area(p) < 3 {
+                continue;
+            }
+            let (v, plane) = (
+                corners(&g, p),
+                Plane::new(p, [0, 1, 2].map(|k| g.vertex_height(p[k]))),
+            );
+            let (mut worst, mut at) = (-1.0f64, u32::MAX);
+            for_each_span(p, |y, lo, hi| {
+                if let Some((lo, hi)) = insertable_run(&g, p, y, lo, hi) {
+                    for x in lo..=hi {
+                        let s = g.sample((x, y));
+                        let e = row_error(plane.at(lo, y), plane.gx, (x - lo) as f64, heights[s]);
+                        if e > worst {
+                            (worst, at) = (e, s as u32);
+                        }
+                    }
+                }
+                true
+            });
+            let a = assess(&g, v);
+            assert_eq!(a.error.to_bits(), worst.max(0.0).to_bits(), "{p:?}");
+            assert_eq!(a.candidate, at, "{p:?}");
+        }
     }
 
     #[test]
