@@ -16,7 +16,7 @@ use crate::error::CodecError;
 use crate::ezw::{Coder, PassRecord, MAX_PLANE};
 use crate::quantize::ValueMapping;
 use crate::raster::{Georef, Metadata, SampleType};
-use crate::wavelet::{self, Wavelet};
+use crate::wavelet::{self, ShiftRule, Wavelet};
 
 /// First eight bytes of every `.ezw` file.
 pub const MAGIC: [u8; 8] = *b"\x89EZW\r\n\x1a\n";
@@ -98,6 +98,9 @@ pub struct Header {
     pub top_plane: Option<u8>,
     /// The context models the payload is coded with (version 1 files: [`Coder::V1`]).
     pub coder: Coder,
+    /// How the 5/3 subbands' plane shifts are rounded from their norms, when `bands` are
+    /// derived (flag 14: [`ShiftRule::Lowered`]).
+    pub shift_rule: ShiftRule,
     /// Per subband: the plane shift and the scale the 9/7 coefficients were multiplied by.
     pub bands: Vec<(u8, f64)>,
     /// The bands a decoder derives for this header's size, levels and wavelet (see
@@ -182,6 +185,7 @@ impl Header {
             valid_range: (0.0, 0.0),
             top_plane: None,
             coder: crate::ezw::Coder::default(),
+            shift_rule: ShiftRule::Rounded,
             bands: Vec::new(),
             derived: DerivedMemo(None),
             payload_len: 0,
@@ -441,17 +445,22 @@ pub fn stored_georef(georef: &Georef) -> Georef {
 /// dimensions instead of reading them (deriving costs O(bands · side)).
 const MAX_DERIVED_SIDE: u32 = 1 << 16;
 
-/// The subband shifts (5/3) or scales (9/7) the encoder gives a `width × height` raster
-/// with `levels` levels, computed from the transform's synthesis norms; `None` above
-/// [`MAX_DERIVED_SIDE`].
-fn derived_bands(wavelet: Wavelet, width: u32, height: u32, levels: u8) -> Option<Vec<(u8, f64)>> {
+/// The subband shifts (5/3, rounded by `rule`) or scales (9/7) the encoder gives a
+/// `width × height` raster with `levels` levels, computed from the transform's synthesis
+/// norms; `None` above [`MAX_DERIVED_SIDE`].
+fn derived_bands(
+    (wavelet, rule): (Wavelet, ShiftRule),
+    width: u32,
+    height: u32,
+    levels: u8,
+) -> Option<Vec<(u8, f64)>> {
     if width.max(height) > MAX_DERIVED_SIDE
         || u32::from(levels) > wavelet::max_levels(width as usize, height as usize)
     {
         return None;
     }
     let norms = wavelet::coding_norms(wavelet, width as usize, height as usize, levels.into());
-    Some(bands_from_norms(wavelet, norms))
+    Some(bands_from_norms((wavelet, rule), norms))
 }
 
 /// A header's [`DerivedBands`] when already computed: a memo, so it takes no part in
@@ -469,8 +478,8 @@ impl PartialEq for DerivedMemo {
 /// The bands a decoder derives for a header, kept with what they were derived for.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct DerivedBands {
-    /// Wavelet, width, height and levels they were derived for.
-    key: (Wavelet, u32, u32, u8),
+    /// Wavelet and shift rule, width, height and levels they were derived for.
+    key: ((Wavelet, ShiftRule), u32, u32, u8),
     bands: Vec<(u8, f64)>,
 }
 
@@ -480,7 +489,7 @@ impl DerivedBands {
     pub(crate) fn from_norms(header: &Header, norms: Vec<f64>) -> Option<DerivedBands> {
         (header.width.max(header.height) <= MAX_DERIVED_SIDE).then(|| DerivedBands {
             key: derivation_key(header),
-            bands: bands_from_norms(header.wavelet, norms),
+            bands: bands_from_norms((header.wavelet, header.shift_rule), norms),
         })
     }
 
@@ -494,16 +503,17 @@ impl DerivedBands {
 
     /// The derived bands of `header`'s size, computed.
     fn of(header: &Header) -> Option<DerivedBands> {
-        let (wavelet, width, height, levels) = derivation_key(header);
-        derived_bands(wavelet, width, height, levels).map(|bands| DerivedBands {
+        let (kind, width, height, levels) = derivation_key(header);
+        derived_bands(kind, width, height, levels).map(|bands| DerivedBands {
             key: derivation_key(header),
             bands,
         })
     }
 }
 
-fn derivation_key(header: &Header) -> (Wavelet, u32, u32, u8) {
-    (header.wavelet, header.width, header.height, header.levels)
+fn derivation_key(header: &Header) -> ((Wavelet, ShiftRule), u32, u32, u8) {
+    let kind = (header.wavelet, header.shift_rule);
+    (kind, header.width, header.height, header.levels)
 }
 
 /// Whether `header`'s bands are the ones a decoder derives from its size (computed only
@@ -515,10 +525,11 @@ fn bands_derivable(header: &Header) -> bool {
     }
 }
 
-/// The subband shifts (5/3) or scales (9/7, as stored) of coding norms `norms`.
-fn bands_from_norms(wavelet: Wavelet, norms: Vec<f64>) -> Vec<(u8, f64)> {
+/// The subband shifts (5/3, rounded by `rule`) or scales (9/7, as stored) of coding norms
+/// `norms`.
+fn bands_from_norms((wavelet, rule): (Wavelet, ShiftRule), norms: Vec<f64>) -> Vec<(u8, f64)> {
     match wavelet {
-        Wavelet::Int53 => wavelet::plane_shifts(&norms)
+        Wavelet::Int53 => wavelet::plane_shifts(&norms, rule)
             .into_iter()
             .map(|shift| (shift.min(u8::MAX.into()) as u8, 1.0))
             .collect(),
@@ -1048,6 +1059,7 @@ mod tests {
             valid_range: (236.0, 1076.0),
             top_plane: Some(17),
             coder: Coder::V2,
+            shift_rule: ShiftRule::Rounded,
             bands: (0..19).map(|b| (b as u8 / 3, 1.0)).collect(),
             derived: DerivedMemo(None),
             payload_len: 12345,
@@ -1256,7 +1268,13 @@ mod tests {
     fn derived_bands_are_left_out_only_when_they_are_those_of_the_size() {
         let mut h = sample_header();
         h.wavelet = Wavelet::Cdf97;
-        h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
+        h.bands = derived_bands(
+            (Wavelet::Cdf97, ShiftRule::Rounded),
+            h.width,
+            h.height,
+            h.levels,
+        )
+        .unwrap();
         let computed = h.to_bytes();
         h.derived = DerivedMemo(Some(DerivedBands::as_read(&h)));
         assert_eq!(h.to_bytes(), computed);
@@ -1278,10 +1296,40 @@ mod tests {
     }
 
     #[test]
+    fn lowered_shifts_are_flag_14_and_derived_by_their_rule() {
+        let mut h = sample_header();
+        h.wavelet = Wavelet::Int53;
+        let kind = |rule| (Wavelet::Int53, rule);
+        let rounded = derived_bands(kind(ShiftRule::Rounded), h.width, h.height, h.levels);
+        let lowered = derived_bands(kind(ShiftRule::Lowered), h.width, h.height, h.levels);
+        assert_ne!(rounded, lowered);
+        (h.shift_rule, h.bands) = (ShiftRule::Lowered, lowered.unwrap());
+        let bytes = h.to_bytes();
+        let (parsed, _) = Header::parse(&bytes).unwrap();
+        assert_eq!(
+            (parsed.shift_rule, &parsed.bands),
+            (ShiftRule::Lowered, &h.bands)
+        );
+        // Derived, not listed: one byte longer than the rounded rule's header (flag 14
+        // takes the flags varint to a third byte), not 19.
+        let mut old = h.clone();
+        (old.shift_rule, old.bands) = (ShiftRule::Rounded, rounded.unwrap());
+        old.derived = DerivedMemo(None);
+        assert_eq!(old.to_bytes().len() + 1, bytes.len());
+        assert_eq!(Header::parse(&old.to_bytes()).unwrap().0.bands, old.bands);
+    }
+
+    #[test]
     fn an_f32_offset_and_step_are_stored_as_two_f32s() {
         let mut h = sample_header();
         (h.sample_type, h.wavelet) = (SampleType::F32, Wavelet::Cdf97);
-        h.bands = derived_bands(Wavelet::Cdf97, h.width, h.height, h.levels).unwrap();
+        h.bands = derived_bands(
+            (Wavelet::Cdf97, ShiftRule::Rounded),
+            h.width,
+            h.height,
+            h.levels,
+        )
+        .unwrap();
         // f32s with long mantissas (no short decimal): 5 bytes each as numbers.
         h.mapping.offset = f64::from(f32::from_bits(0x449A_5123));
         h.coefficient_step = f64::from(f32::from_bits(0x3698_7654));

@@ -7,15 +7,19 @@ pub use blocks::code_blocks;
 use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;
+use crate::pipeline::SHIFT_RULE;
 use crate::quantize::{prepare_53, prepare_97, VoidCoefficients};
 use crate::raster::Raster;
-use crate::wavelet::{self, Wavelet};
+use crate::wavelet::{self, ShiftRule, Wavelet};
 
 /// What each context buys on `raster`'s lossless 5/3 coefficients: the ideal code length
 /// (bits) with every context, with each one removed in turn, and with none.
 pub fn context_ablation(raster: &Raster) -> Result<Vec<(&'static str, f64)>, CodecError> {
-    let (layout, coefficients) =
-        complete_coefficients(raster, Wavelet::Int53, VoidCoefficients::Zeroed)?;
+    let (layout, coefficients) = complete_coefficients(
+        raster,
+        Wavelet::Int53,
+        (VoidCoefficients::Zeroed, SHIFT_RULE),
+    )?;
     Ok(context_choices()
         .into_iter()
         .map(|(name, choice)| (name, ezw::count_bits(&layout, &coefficients, choice)))
@@ -27,30 +31,33 @@ pub use crate::ezw::{PriorTally, PRIOR_WINDOW};
 /// Adds to `tally` the first decisions of every context model in `raster`'s complete
 /// stream with `wavelet` (lossless 5/3, or 9/7 at its finest step): the training of
 /// coder 3's starting probabilities (see [`PriorTally`]), with the coefficients of voids
-/// as they were when the tables were trained (the transform of the filled voids).
+/// and the 5/3 subbands' shifts as they were when the tables were trained (the transform
+/// of the filled voids, [`ShiftRule::Rounded`]).
 pub fn tally_priors(
     raster: &Raster,
     wavelet: Wavelet,
     tally: &mut PriorTally,
 ) -> Result<(), CodecError> {
-    let (layout, coefficients) = complete_coefficients(raster, wavelet, VoidCoefficients::Filled)?;
+    let trained = (VoidCoefficients::Filled, ShiftRule::Rounded);
+    let (layout, coefficients) = complete_coefficients(raster, wavelet, trained)?;
     ezw::tally_priors(&layout, &coefficients, tally);
     Ok(())
 }
 
 /// `raster`'s coefficients for a complete stream with `wavelet` (lossless 5/3, or 9/7 at
-/// its finest step) at the default levels, `voids` as asked, and their layout.
+/// its finest step) at the default levels, `voids` and the shifts' `rule` as asked, and
+/// their layout.
 fn complete_coefficients(
     raster: &Raster,
     wavelet: Wavelet,
-    voids: VoidCoefficients,
+    (voids, rule): (VoidCoefficients, ShiftRule),
 ) -> Result<(CoefficientLayout, Vec<i32>), CodecError> {
     let (width, height) = (raster.width, raster.height);
     let levels = wavelet::default_levels(width, height);
     let norms = wavelet::coding_norms(wavelet, width, height, levels);
     let mask = raster.valid_mask();
     let prepared = match wavelet {
-        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms, voids)?,
+        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms, (voids, rule))?,
         Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, voids),
     };
     let subbands = wavelet::subbands(width, height, levels);

@@ -316,13 +316,30 @@ pub fn coding_norms(wavelet: Wavelet, width: usize, height: usize, levels: u32) 
         .collect()
 }
 
+/// How the 5/3 coder rounds each subband's norm, relative to the smallest, to whole
+/// bit-planes: the order in which a lossless stream's prefixes refine the subbands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ShiftRule {
+    /// `round(log2(norm / smallest))` (files written before [`ShiftRule::Lowered`]).
+    #[default]
+    Rounded,
+    /// `round(log2(norm / smallest) − 1/4)`: the finest horizontal and vertical subbands
+    /// (norms 2^0.53 the finest diagonal's) share its planes instead of going a plane
+    /// ahead, which suits their rate: prefixes gain up to 1 dB, lossless files 0.1–0.5 %.
+    Lowered,
+}
+
 /// The 5/3 coder's per-subband plane shifts: each norm relative to the smallest, in whole
-/// bit-planes (`round(log2(norm / smallest))`).
-pub fn plane_shifts(norms: &[f64]) -> Vec<u32> {
+/// bit-planes as `rule` rounds them.
+pub fn plane_shifts(norms: &[f64], rule: ShiftRule) -> Vec<u32> {
     let smallest = norms.iter().cloned().fold(f64::INFINITY, f64::min);
+    let bias = match rule {
+        ShiftRule::Rounded => 0.0,
+        ShiftRule::Lowered => -0.25,
+    };
     norms
         .iter()
-        .map(|&n| (n / smallest).log2().round().max(0.0) as u32)
+        .map(|&n| ((n / smallest).log2() + bias).round().max(0.0) as u32)
         .collect()
 }
 
@@ -909,6 +926,22 @@ impl SpillMap<'_> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn lowered_shifts_move_the_finest_horizontal_and_vertical_bands_down() {
+        let (width, height, levels) = (512, 512, 6);
+        let norms = coding_norms(Wavelet::Int53, width, height, levels);
+        let rounded = plane_shifts(&norms, ShiftRule::Rounded);
+        let lowered = plane_shifts(&norms, ShiftRule::Lowered);
+        for ((band, r), l) in subbands(width, height, levels)
+            .iter()
+            .zip(rounded)
+            .zip(lowered)
+        {
+            let finest_hl_lh = band.level == 1 && band.orientation != Orientation::HH;
+            assert_eq!(l + u32::from(finest_hl_lh), r, "{band:?}");
+        }
+    }
 
     /// Deterministic pseudo-random numbers (SplitMix64).
     struct Rng(u64);

@@ -59,6 +59,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         nodata,
         valid_range,
         coder: crate::ezw::Coder::V1,
+        shift_rule: crate::wavelet::ShiftRule::Rounded,
         top_plane,
         bands,
         derived: super::DerivedMemo(None),

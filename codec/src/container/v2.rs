@@ -11,7 +11,7 @@ use crate::raster::geokey::{
     GEOGRAPHIC_TYPE, MODEL_GEOGRAPHIC, MODEL_PROJECTED, MODEL_TYPE, PROJECTED_TYPE, RASTER_TYPE,
 };
 use crate::raster::{Georef, Metadata, MetadataItem, SampleType};
-use crate::wavelet::Wavelet;
+use crate::wavelet::{ShiftRule, Wavelet};
 use crate::Mode;
 
 /// Header flag bits (the `flags` varint).
@@ -30,7 +30,8 @@ mod flag {
     pub const CORRECTION_STEP_IMPLIED: u64 = 1 << 11;
     pub const F32_MAPPING: u64 = 1 << 12;
     pub const COMPACT_TILES: u64 = 1 << 13;
-    pub const ALL: u64 = (1 << 14) - 1;
+    pub const LOWERED_SHIFTS: u64 = 1 << 14;
+    pub const ALL: u64 = (1 << 15) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -255,6 +256,10 @@ fn flags(header: &Header) -> u64 {
         (single, flag::RANGE_IN_LADDER),
         (f32_mapping(header), flag::F32_MAPPING),
         (
+            single && header.shift_rule == ShiftRule::Lowered,
+            flag::LOWERED_SHIFTS,
+        ),
+        (
             single && has_residual(header) && correction_step_implied(header),
             flag::CORRECTION_STEP_IMPLIED,
         ),
@@ -385,6 +390,7 @@ fn read_stream_fields(
         valid_range,
         top_plane,
         coder: kind.coder,
+        shift_rule: shift_rule(flags),
         bands,
         payload_len,
         payload_truncated: flags & flag::PAYLOAD_TRUNCATED != 0,
@@ -404,6 +410,14 @@ fn read_stream_fields(
         header.derived = super::DerivedMemo(Some(super::DerivedBands::as_read(&header)));
     }
     Ok(header)
+}
+
+/// The 5/3 shift rule of a stream header's `flags` (flag 14).
+fn shift_rule(flags: u64) -> ShiftRule {
+    match flags & flag::LOWERED_SHIFTS {
+        0 => ShiftRule::Rounded,
+        _ => ShiftRule::Lowered,
+    }
 }
 
 /// What the `kinds` and levels bytes say: the coder, sample type, wavelet, levels and mode.
@@ -474,7 +488,8 @@ fn read_band_scales(
     if flags & flag::BANDS_LISTED != 0 {
         super::read_bands(r, kind.wavelet, kind.levels)
     } else {
-        derived_bands(kind.wavelet, width, height, kind.levels).ok_or_else(|| {
+        let rule = shift_rule(flags);
+        derived_bands((kind.wavelet, rule), width, height, kind.levels).ok_or_else(|| {
             CodecError::InvalidHeader("subband scales must be listed at this size".into())
         })
     }
@@ -589,7 +604,8 @@ fn parse_tiled(
         | flag::RESIDUAL
         | flag::RANGE_IN_LADDER
         | flag::CORRECTION_STEP_IMPLIED
-        | flag::F32_MAPPING;
+        | flag::F32_MAPPING
+        | flag::LOWERED_SHIFTS;
     if flags & stream_only != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "flags {flags:#x} of a tiled file"

@@ -11,9 +11,12 @@ use crate::quantize::{self, prepare_53, prepare_97, Prepared, VoidCoefficients};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::encode_residuals;
 use crate::tiles::TileGrid;
-use crate::wavelet::{self, Wavelet};
+use crate::wavelet::{self, ShiftRule, Wavelet};
 
 use super::options::{EncodeOptions, Quality};
+
+/// How the encoder rounds the 5/3 subbands' norms to plane shifts.
+pub(crate) const SHIFT_RULE: ShiftRule = ShiftRule::Lowered;
 
 /// The result of encoding.
 #[derive(Debug, Clone)]
@@ -122,7 +125,7 @@ fn prepare(
             mask,
             options.quality,
             norms,
-            VoidCoefficients::Zeroed,
+            (VoidCoefficients::Zeroed, SHIFT_RULE),
         ),
         Wavelet::Cdf97 => {
             if options.quality != Quality::Lossless {
@@ -292,6 +295,10 @@ fn stream_header(
         top_plane: top.map(|t| t as u8),
         // What `ezw::encode` codes with.
         coder: ezw::Coder::default(),
+        shift_rule: match wavelet {
+            Wavelet::Int53 => SHIFT_RULE,
+            Wavelet::Cdf97 => ShiftRule::Rounded,
+        },
         bands: prepared
             .shifts
             .iter()

@@ -7,7 +7,7 @@ use crate::error::CodecError;
 use crate::ezw::{Midpoint, MAX_COEFFICIENT_PLANE};
 use crate::pipeline::Quality;
 use crate::raster::{Raster, Samples};
-use crate::wavelet::{self, Subband, Wavelet};
+use crate::wavelet::{self, ShiftRule, Subband, Wavelet};
 
 use super::{
     default_float_step, detect_float_grid, fill_voids, float_plane, integer_plane, valid_range,
@@ -50,13 +50,13 @@ pub(crate) enum VoidCoefficients {
 }
 
 /// The 5/3 path: samples to the integer plane `quality` asks for, voids filled,
-/// transformed.
+/// transformed, the subbands shifted by `rule`.
 pub(crate) fn prepare_53(
     raster: &Raster,
     mask: &[bool],
     quality: Quality,
     norms: &[f64],
-    voids: VoidCoefficients,
+    (voids, rule): (VoidCoefficients, ShiftRule),
 ) -> Result<Prepared, CodecError> {
     let (width, height) = (raster.width, raster.height);
     let (plane, mode, max_error) = integer_plane_for(raster, mask, quality)?;
@@ -78,7 +78,7 @@ pub(crate) fn prepare_53(
         wavelet::zero_unreached(&mut values, width, height, levels, Wavelet::Int53, mask);
     }
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
-    let shifts = wavelet::plane_shifts(norms);
+    let shifts = wavelet::plane_shifts(norms, rule);
     let step2 = mapping.step * mapping.step;
     Ok(Prepared {
         coefficients: values,

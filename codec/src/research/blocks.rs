@@ -7,7 +7,7 @@
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
 use crate::ezw::{self, Coder, CoefficientLayout, Decoder, EncodedPayload};
-use crate::pipeline::Quality;
+use crate::pipeline::{Quality, SHIFT_RULE};
 use crate::quantize::{prepare_53, prepare_97, Prepared, VoidCoefficients};
 use crate::raster::Raster;
 use crate::tiles::{allocate_points, write_index, Block, BlockGrid, TileEntry};
@@ -50,7 +50,7 @@ pub fn code_blocks(
             &mask,
             Quality::Lossless,
             &norms,
-            VoidCoefficients::Zeroed,
+            (VoidCoefficients::Zeroed, SHIFT_RULE),
         )?,
         Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, VoidCoefficients::Zeroed),
     };
