@@ -88,4 +88,4 @@ pub use pipeline::{
 pub use raster::{geokey, Georef, Metadata, MetadataItem, Raster, SampleType, Samples};
 pub use significance::SignificanceMap;
 pub use tiles::{ByteSource, TileGrid, Window};
-pub use wavelet::Wavelet;
+pub use wavelet::{ShiftRule, Wavelet};
