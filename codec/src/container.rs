@@ -1264,17 +1264,17 @@ mod tests {
         }
     }
 
+    /// The 9/7 scales a decoder derives for `h`'s size.
+    fn derived_97(h: &Header) -> Vec<(u8, f64)> {
+        let kind = (Wavelet::Cdf97, ShiftRule::Rounded);
+        derived_bands(kind, h.width, h.height, h.levels).unwrap()
+    }
+
     #[test]
     fn derived_bands_are_left_out_only_when_they_are_those_of_the_size() {
         let mut h = sample_header();
         h.wavelet = Wavelet::Cdf97;
-        h.bands = derived_bands(
-            (Wavelet::Cdf97, ShiftRule::Rounded),
-            h.width,
-            h.height,
-            h.levels,
-        )
-        .unwrap();
+        h.bands = derived_97(&h);
         let computed = h.to_bytes();
         h.derived = DerivedMemo(Some(DerivedBands::as_read(&h)));
         assert_eq!(h.to_bytes(), computed);
@@ -1323,13 +1323,7 @@ mod tests {
     fn an_f32_offset_and_step_are_stored_as_two_f32s() {
         let mut h = sample_header();
         (h.sample_type, h.wavelet) = (SampleType::F32, Wavelet::Cdf97);
-        h.bands = derived_bands(
-            (Wavelet::Cdf97, ShiftRule::Rounded),
-            h.width,
-            h.height,
-            h.levels,
-        )
-        .unwrap();
+        h.bands = derived_97(&h);
         // f32s with long mantissas (no short decimal): 5 bytes each as numbers.
         h.mapping.offset = f64::from(f32::from_bits(0x449A_5123));
         h.coefficient_step = f64::from(f32::from_bits(0x3698_7654));
