@@ -4,11 +4,13 @@
 //! file's is over its tiles', and the kept prefixes decoded back into one inverse
 //! transform (issue 9's tile seams).
 
+use bitvec::prelude::{BitVec, Lsb0};
+
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
 use crate::ezw::{self, Coder, CoefficientLayout, Decoder, EncodedPayload};
 use crate::pipeline::{Quality, SHIFT_RULE};
-use crate::quantize::{prepare_53, prepare_97, Prepared, VoidCoefficients};
+use crate::quantize::{prepare_53, prepare_97, rescale_97, to_samples, Prepared, VoidCoefficients};
 use crate::raster::Raster;
 use crate::tiles::{allocate_points, write_index, Block, BlockGrid, TileEntry};
 use crate::wavelet::{self, Wavelet};
@@ -17,8 +19,8 @@ use crate::wavelet::{self, Wavelet};
 #[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct CodeBlocks {
-    /// The decoded values (before rounding to the sample type), raster order.
-    pub values: Vec<f64>,
+    /// The decoded raster (the original's sample type and nodata value).
+    pub raster: Raster,
     /// Bytes each block kept, its head included.
     pub block_bytes: Vec<u64>,
     /// Bytes of a compact tile index listing the blocks with their passes.
@@ -75,9 +77,10 @@ pub fn code_blocks(
         .map(|(s, &len)| s.entry(head, len))
         .collect();
     let index_bytes = write_index(&entries, true).len();
-    let values = reconstruct(&grid, &prepared, &blocks, &streams, &block_bytes, head);
+    let cut = (block_bytes.as_slice(), head);
+    let decoded = reconstruct(raster, (&grid, &prepared), &blocks, &streams, cut)?;
     Ok(CodeBlocks {
-        values,
+        raster: decoded,
         block_bytes,
         index_bytes,
     })
@@ -150,44 +153,51 @@ impl BlockStream {
     }
 }
 
-/// The values the blocks' kept prefixes decode to through one inverse transform.
+/// The samples the blocks' kept prefixes decode to through one inverse transform, as
+/// `raster`'s type (voids hold its nodata value).
 fn reconstruct(
-    grid: &BlockGrid,
-    prepared: &Prepared,
+    raster: &Raster,
+    (grid, prepared): (&BlockGrid, &Prepared),
     blocks: &[Block],
     streams: &[BlockStream],
-    block_bytes: &[u64],
-    head: u64,
-) -> Vec<f64> {
+    (block_bytes, head): (&[u64], u64),
+) -> Result<Raster, CodecError> {
     let (width, height, levels) = (grid.width, grid.height, grid.levels);
     let parts = blocks.iter().zip(streams).zip(block_bytes);
-    if prepared.midpoint == ezw::Midpoint::Integer {
+    let values: Vec<f64> = if prepared.midpoint == ezw::Midpoint::Integer {
         let mut all = vec![0i32; width * height];
         for ((&b, s), &len) in parts {
             grid.scatter(&s.decoder(len, head).integer_coefficients(), &mut all, b);
         }
         wavelet::inverse_53(&mut all, width, height, levels);
-        return all
-            .iter()
-            .map(|&v| prepared.mapping.value(f64::from(v)))
-            .collect();
-    }
-    let mut all = vec![0f32; width * height];
-    for ((&b, s), &len) in parts {
-        grid.scatter(&s.decoder(len, head).into_real_coefficients(), &mut all, b);
-    }
-    let subbands = wavelet::subbands(width, height, levels);
-    for (sub, &norm) in subbands.iter().zip(&prepared.scales) {
-        let scale = (prepared.coefficient_step / norm) as f32;
-        for row in 0..sub.height {
-            let start = (sub.y0 + row) * width + sub.x0;
-            all[start..start + sub.width]
-                .iter_mut()
-                .for_each(|c| *c *= scale);
+        all.into_iter().map(f64::from).collect()
+    } else {
+        let mut all = vec![0f32; width * height];
+        for ((&b, s), &len) in parts {
+            grid.scatter(&s.decoder(len, head).into_real_coefficients(), &mut all, b);
         }
-    }
-    wavelet::inverse_97(&mut all, width, height, levels);
-    all.iter()
-        .map(|&v| prepared.mapping.value(f64::from(v)))
-        .collect()
+        let bands: Vec<(u8, f64)> = prepared.scales.iter().map(|&s| (0, s)).collect();
+        let subbands = wavelet::subbands(width, height, levels);
+        rescale_97(
+            &mut all,
+            width,
+            &subbands,
+            &bands,
+            prepared.coefficient_step,
+        );
+        wavelet::inverse_97(&mut all, width, height, levels);
+        all.into_iter().map(f64::from).collect()
+    };
+    let mask: BitVec<u64, Lsb0> = raster.valid_mask().into_iter().collect();
+    let value_of = |v: f64| prepared.mapping.value(v);
+    let samples = to_samples(
+        raster.sample_type(),
+        values,
+        value_of,
+        Some(&mask),
+        raster.nodata,
+    );
+    let mut decoded = Raster::new(width, height, samples)?;
+    decoded.nodata = raster.nodata;
+    Ok(decoded)
 }
