@@ -154,6 +154,11 @@ pub struct Tiling {
     /// ladder; see [`Header::parse_tile`]) and the index its compact form; false in files
     /// written before it, whose tiles are single-stream files.
     pub compact_tiles: bool,
+    /// Side of the code blocks each tile is cut into (flag 15): a tile is then one
+    /// transform whose coefficients below each `code_block`-sample square are coded as an
+    /// embedded stream of its own, listed in the index after the tile's head (see
+    /// [`crate::tiles`]). `None`: every tile is one stream.
+    pub code_block: Option<u32>,
 }
 
 impl Header {

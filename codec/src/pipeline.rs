@@ -5,10 +5,12 @@ mod decode;
 mod encode;
 mod options;
 
-pub(crate) use decode::decode_parsed;
+pub(crate) use decode::{
+    apply_residual_section, check_limits, decode_parsed, reconstruct, Coefficients,
+};
 pub use decode::{decode, decode_window, decode_windows, Damage, Decoded};
-pub(crate) use encode::encode_stream;
 #[cfg(feature = "research")]
 pub(crate) use encode::SHIFT_RULE;
 pub use encode::{encode, Encoded};
+pub(crate) use encode::{encode_stream, plan_stream};
 pub use options::{DecodeOptions, EncodeOptions, Limits, Quality};

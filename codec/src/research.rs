@@ -1,9 +1,6 @@
 //! Measurements of the coder's design choices, for `wavemesh report`. **Unstable**: behind
 //! the `research` feature, and free to change with the coder.
 
-mod blocks;
-pub use blocks::code_blocks;
-
 use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;

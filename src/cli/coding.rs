@@ -50,6 +50,12 @@ pub struct EncodeArgs {
     /// what they need; 0 codes one stream whatever the size.
     #[arg(long, value_name = "N", default_value_t = wavemesh_codec::tiles::DEFAULT_TILE)]
     tile: u32,
+    /// Code blocks of N samples a side (a multiple of 64): each tile becomes one
+    /// transform whose blocks are coded and indexed on their own, so windows read only
+    /// the blocks they need and tile borders do not show. The raster is then read
+    /// whole (no streaming encode yet).
+    #[arg(long, value_name = "N")]
+    block: Option<u32>,
     #[command(flatten)]
     threads: ThreadArgs,
     /// Report PSNR/RMSE/max error of the encoded stream against this DEM.
@@ -177,7 +183,7 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
     let to_stdout = writes_to_stdout(&args.output, args.json)?;
     warn_about_output_extension(&args.output);
-    if args.tile > 0 && !args.verify && args.reference.is_none() {
+    if args.tile > 0 && args.block.is_none() && !args.verify && args.reference.is_none() {
         let mut bands = args.input_args.open_bands(&args.input)?;
         let info = bands.info();
         if let Some(grid) = TileGrid::balanced(info.width, info.height, args.tile as usize) {
@@ -330,6 +336,7 @@ pub(super) fn encode_options(args: &EncodeArgs, samples: u64) -> Result<EncodeOp
     options.levels = args.levels;
     options.tile_size = (args.tile > 0).then_some(args.tile);
     options.threads = args.threads.threads;
+    options.code_block = args.block;
     Ok(options)
 }
 

@@ -31,7 +31,8 @@ mod flag {
     pub const F32_MAPPING: u64 = 1 << 12;
     pub const COMPACT_TILES: u64 = 1 << 13;
     pub const LOWERED_SHIFTS: u64 = 1 << 14;
-    pub const ALL: u64 = (1 << 15) - 1;
+    pub const CODE_BLOCKS: u64 = 1 << 15;
+    pub const ALL: u64 = (1 << 16) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -175,6 +176,9 @@ fn write_tiled(header: &Header, tiling: Tiling) -> Vec<u8> {
     if tiling.overlap > 0 {
         write_varint(&mut body, tiling.overlap.into());
     }
+    if let Some(side) = tiling.code_block {
+        write_varint(&mut body, side.into());
+    }
     write_values(&mut body, header, true);
     write_varint(&mut body, tiling.index_len);
     write_gis(&mut body, header);
@@ -249,6 +253,10 @@ fn flags(header: &Header) -> u64 {
         (max_error_listed(header), flag::MAX_ERROR),
         (!single, flag::TILED),
         (header.tiling.is_some_and(|t| t.overlap > 0), flag::OVERLAP),
+        (
+            header.tiling.is_some_and(|t| t.code_block.is_some()),
+            flag::CODE_BLOCKS,
+        ),
         (
             header.tiling.is_some_and(|t| t.compact_tiles),
             flag::COMPACT_TILES,
@@ -328,7 +336,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<(Header, bool), CodecError>
         }
         return Ok((parse_tiled(r, flags, size, &kind)?, false));
     }
-    if flags & (flag::OVERLAP | flag::COMPACT_TILES) != 0 {
+    if flags & (flag::OVERLAP | flag::COMPACT_TILES | flag::CODE_BLOCKS) != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "flags {flags:#x} of a tiled file in a single stream"
         )));
@@ -348,7 +356,8 @@ pub(super) fn parse_tile_fields(r: &mut Reader) -> Result<Header, CodecError> {
         | flag::TILED
         | flag::OVERLAP
         | flag::RANGE_IN_LADDER
-        | flag::COMPACT_TILES;
+        | flag::COMPACT_TILES
+        | flag::CODE_BLOCKS;
     if flags & !flag::ALL != 0 || flags & file_only != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "tile header flags {flags:#x}"
@@ -621,6 +630,15 @@ fn parse_tiled(
     } else {
         0
     };
+    let code_block = match flags & flag::CODE_BLOCKS != 0 {
+        true => Some(r.varint_u32("code block side")?).filter(|&side| side > 0),
+        false => None,
+    };
+    if flags & flag::CODE_BLOCKS != 0 && (code_block.is_none() || overlap > 0) {
+        return Err(CodecError::InvalidHeader(
+            "code blocks of side 0, or in overlapping tiles".into(),
+        ));
+    }
     let (max_error, valid_range, nodata) = read_values(r, flags, kind.mode)?;
     let index_len = r.varint()?;
     let (georef, metadata) = read_gis(r, flags)?;
@@ -636,6 +654,7 @@ fn parse_tiled(
             overlap,
             index_len,
             compact_tiles: flags & flag::COMPACT_TILES != 0,
+            code_block,
         }),
         ..Header::whole_raster(
             width,

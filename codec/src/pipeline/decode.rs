@@ -209,7 +209,7 @@ fn decode_memory(header: &Header) -> u64 {
 }
 
 /// Refuses a stream whose size or decoder memory exceeds `limits`.
-fn check_limits(header: &Header, limits: &Limits) -> Result<(), CodecError> {
+pub(crate) fn check_limits(header: &Header, limits: &Limits) -> Result<(), CodecError> {
     let n = header.sample_count();
     if n > limits.max_samples {
         return Err(CodecError::LimitExceeded {
@@ -373,7 +373,7 @@ fn reconstruction(
         .then(|| decoder.significance(&layout));
     let (passes_decoded, complete) = (decoder.passes_completed, decoder.complete);
     Reconstruction {
-        samples: reconstruct(header, decoder, mask),
+        samples: reconstruct(header, Coefficients::of(decoder, header.wavelet), mask),
         passes_decoded,
         complete,
         significance,
@@ -587,11 +587,39 @@ fn payload_source<'a>(
     )
 }
 
+/// Decoded coefficients: integers (5/3) or reals (9/7, quantised units).
+pub(crate) enum Coefficients {
+    Integer(Vec<i32>),
+    Real(Vec<f32>),
+}
+
+impl Coefficients {
+    /// `len` zeros.
+    pub(crate) fn zeros(wavelet: Wavelet, len: usize) -> Coefficients {
+        match wavelet {
+            Wavelet::Int53 => Coefficients::Integer(vec![0; len]),
+            Wavelet::Cdf97 => Coefficients::Real(vec![0.0; len]),
+        }
+    }
+
+    /// What `decoder` decoded, as `wavelet` inverts them.
+    pub(crate) fn of(decoder: Decoder, wavelet: Wavelet) -> Coefficients {
+        match wavelet {
+            Wavelet::Int53 => Coefficients::Integer(decoder.integer_coefficients()),
+            Wavelet::Cdf97 => Coefficients::Real(decoder.into_real_coefficients()),
+        }
+    }
+}
+
 /// The decoded coefficients through the inverse transform to samples. In place: the
 /// coefficient buffer becomes the image, then the samples (narrower ones packed inside
 /// it first, see [`narrow`]), so the decode never holds more than the coefficients
 /// (4 bytes a sample).
-fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Lsb0>>) -> Samples {
+pub(crate) fn reconstruct(
+    header: &Header,
+    coefficients: Coefficients,
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) -> Samples {
     let (width, height) = (header.width as usize, header.height as usize);
     let levels = header.levels as u32;
     let mapping = header.mapping;
@@ -601,14 +629,12 @@ fn reconstruct(header: &Header, decoder: Decoder, mask: Option<&BitSlice<u64, Ls
         SampleType::F32 => SampleType::F32,
         _ => SampleType::I32,
     };
-    let samples = match header.wavelet {
-        Wavelet::Int53 => {
-            let mut coefficients = decoder.integer_coefficients();
+    let samples = match coefficients {
+        Coefficients::Integer(mut coefficients) => {
             wavelet::inverse_53(&mut coefficients, width, height, levels);
             integer_samples(wide_type, coefficients, mapping, mask, header.nodata)
         }
-        Wavelet::Cdf97 => {
-            let mut data = decoder.into_real_coefficients();
+        Coefficients::Real(mut data) => {
             let subbands = wavelet::subbands(width, height, levels);
             rescale_97(
                 &mut data,
@@ -678,7 +704,7 @@ fn narrowed<T>(
 /// Applies the residual section: exact float residuals once the whole stream is decoded
 /// (`ezw_complete`), or max-error corrections once the whole (cut) payload is. Returns
 /// whether the section is complete and applied (true when there is none).
-fn apply_residual_section(
+pub(crate) fn apply_residual_section(
     header: &Header,
     sections: &StreamSections,
     samples: &mut Samples,
@@ -762,7 +788,7 @@ mod tests {
         let top = header.top_plane.map(u32::from);
         let source = payload_source(&sections, complete);
         let wide = Decoder::run_from(&layout, header.coder, source, top, options.max_passes);
-        let wide = reconstruct(&header, wide, mask);
+        let wide = reconstruct(&header, Coefficients::of(wide, header.wavelet), mask);
         let available = sections.payload_check.data_len as u64;
         let scaled = scaled_slots(&header, available, options);
         let samples = reconstruction(&header, &sections, complete, options, mask).samples;

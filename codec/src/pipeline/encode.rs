@@ -46,6 +46,19 @@ pub struct Encoded {
 /// A raster with a side longer than `options.tile_size` becomes a tiled file (see
 /// [`crate::tiles`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+    if let Some(side) = options.code_block {
+        if side == 0 || side % 64 != 0 {
+            return Err(CodecError::InvalidParameters(format!(
+                "code blocks of {side} samples: the side must be a multiple of 64"
+            )));
+        }
+        let max_tile = options.tile_size.unwrap_or(u32::MAX) as usize;
+        let side = side as usize;
+        if let Some(grid) = crate::tiles::unit_grid(raster.width, raster.height, max_tile, side) {
+            check_dimensions(raster)?;
+            return crate::tiles::encode_blocked(raster, options, &grid, side);
+        }
+    }
     let grid = options
         .tile_size
         .and_then(|t| TileGrid::balanced(raster.width, raster.height, t as usize));
@@ -166,35 +179,25 @@ pub(crate) fn encode_stream(
     options: &EncodeOptions,
 ) -> Result<(Encoded, Parts), CodecError> {
     check_dimensions(raster)?;
-    let (width, height) = (raster.width, raster.height);
     let levels = checked_levels(raster, options.levels)?;
-    let mask = raster.valid_mask();
-    let has_voids = mask.iter().any(|&m| !m);
-    let norms = wavelet::coding_norms(options.wavelet, width, height, levels);
-    let prepared = prepare(raster, &mask, options, &norms)?;
-    let subbands = wavelet::subbands(width, height, levels);
-    let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);
+    let plan = plan_stream(raster, options, levels)?;
+    let (mut header, prepared) = (plan.header, plan.prepared);
+    let layout = CoefficientLayout::new(
+        raster.width,
+        raster.height,
+        &wavelet::subbands(raster.width, raster.height, levels),
+        &prepared.shifts,
+    );
     let mut sections = Sections {
-        mask: mask_section(&mask, width, has_voids),
+        mask: plan.mask,
         payload: Vec::new(),
-        residual: residual_section(&prepared.residuals),
+        residual: plan.residual,
     };
     let top = ezw::top_plane(&layout, &prepared.coefficients);
+    header.top_plane = top.map(|t| t as u8);
     let steps = top.map_or(1, |t| u64::from(t) + 2);
-    let samples = (width * height) as u64;
+    let samples = raster.len() as u64;
     progress::report(Stage::Transform, samples, samples * steps);
-    let mut header = stream_header(
-        raster,
-        options.wavelet,
-        levels,
-        &prepared,
-        &mask,
-        has_voids,
-        top,
-    );
-    header.derived = container::DerivedMemo(container::DerivedBands::from_norms(&header, norms));
-    header.mask_len = sections.mask.len() as u32;
-    header.residual_len = sections.residual.len() as u32;
     let budget = options.budget_bytes.map(|b| b as usize);
     let payload = ezw::encode(
         &layout,
@@ -209,6 +212,41 @@ pub(crate) fn encode_stream(
     fit_to_budget(&mut header, &mut sections, payload, budget);
     checkpoints.retain(|&(end, _)| end <= sections.payload.len() as u64);
     Ok(assemble(header, sections, (initial_error, checkpoints)))
+}
+
+/// A stream ready for its payload: its header (no top plane; the mask and residual
+/// sections' lengths set), its prepared coefficients, and those two sections.
+pub(crate) struct StreamPlan {
+    pub header: Header,
+    pub prepared: Prepared,
+    pub mask: Vec<u8>,
+    pub residual: Vec<u8>,
+}
+
+/// Quantises and transforms `raster` with `levels` levels as `options` say, and builds
+/// the header and the sections besides the payload.
+pub(crate) fn plan_stream(
+    raster: &Raster,
+    options: &EncodeOptions,
+    levels: u32,
+) -> Result<StreamPlan, CodecError> {
+    let (width, height) = (raster.width, raster.height);
+    let mask = raster.valid_mask();
+    let has_voids = mask.iter().any(|&m| !m);
+    let norms = wavelet::coding_norms(options.wavelet, width, height, levels);
+    let prepared = prepare(raster, &mask, options, &norms)?;
+    let mask_bytes = mask_section(&mask, width, has_voids);
+    let residual = residual_section(&prepared.residuals);
+    let mut header = stream_header(raster, options.wavelet, levels, &prepared, &mask, has_voids);
+    header.derived = container::DerivedMemo(container::DerivedBands::from_norms(&header, norms));
+    header.mask_len = mask_bytes.len() as u32;
+    header.residual_len = residual.len() as u32;
+    Ok(StreamPlan {
+        header,
+        prepared,
+        mask: mask_bytes,
+        residual,
+    })
 }
 
 /// The file of `header` and `sections`, and the sections a corrected file reuses;
@@ -264,8 +302,8 @@ fn payload_budget(
     }
 }
 
-/// The header of a stream of `prepared` coefficients from `top` down, its sections
-/// still empty.
+/// The header of a stream of `prepared` coefficients, its sections still empty and
+/// its top plane unset.
 fn stream_header(
     raster: &Raster,
     wavelet: Wavelet,
@@ -273,7 +311,6 @@ fn stream_header(
     prepared: &Prepared,
     mask: &[bool],
     has_voids: bool,
-    top: Option<u32>,
 ) -> Header {
     let sample_type = raster.sample_type();
     let whole = Header::whole_raster(
@@ -292,7 +329,6 @@ fn stream_header(
             .nodata
             .or((has_voids && sample_type == SampleType::F32).then_some(f64::NAN)),
         valid_range: quantize::valid_range(raster, mask).unwrap_or((0.0, 0.0)),
-        top_plane: top.map(|t| t as u8),
         // What `ezw::encode` codes with.
         coder: ezw::Coder::default(),
         shift_rule: match wavelet {

@@ -42,6 +42,12 @@ pub struct EncodeOptions {
     pub tile_size: Option<u32>,
     /// Threads coding tiles at once (0: one per core). The bytes do not depend on it.
     pub threads: usize,
+    /// Side of code blocks (a multiple of 64), or `None`. With it, a raster larger than
+    /// a block is coded as tiles of at most `tile_size` (rounded up to whole blocks; one
+    /// tile when it fits), each tile one transform whose coefficients below each block
+    /// form an embedded stream of their own: random access by block, and no tile borders
+    /// showing in the samples as independent tiles' do (see [`crate::tiles`]).
+    pub code_block: Option<u32>,
 }
 
 impl EncodeOptions {
@@ -59,6 +65,7 @@ impl EncodeOptions {
             budget_bytes,
             tile_size: Some(DEFAULT_TILE),
             threads: 0,
+            code_block: None,
         }
     }
 
@@ -117,6 +124,7 @@ setters!(EncodeOptions {
     with_budget_bytes => budget_bytes: Option<u64>,
     with_tile_size => tile_size: Option<u32>,
     with_threads => threads: usize,
+    with_code_block => code_block: Option<u32>,
 });
 
 /// Resource limits checked before the decoder allocates: [`Limits::DEFAULT`] or

@@ -154,7 +154,7 @@ impl Output {
         }
     }
 
-    /// Places tile `k`'s decode (of `fetched` bytes). A tile whose bytes end before its
+    /// Places tile `k`'s decode (`whole`: of all its bytes). A tile whose bytes end before its
     /// header does is missing (the file is truncated); any other failure is damage,
     /// reported by tile number, and an error when `strict`. Either way the tile keeps
     /// the fill value and the other tiles decode.
@@ -162,11 +162,11 @@ impl Output {
         &mut self,
         k: usize,
         layout: &TiledLayout,
-        fetched: u64,
+        whole: bool,
         result: Result<Decoded, CodecError>,
         strict: bool,
     ) -> Result<(), CodecError> {
-        let start = layout.offsets[k];
+        let start = layout.offsets[layout.tile_entries[k]];
         let area = layout.grid.coded(k);
         let misfit = |d: &Decoded| {
             (d.raster.width, d.raster.height, d.raster.sample_type())
@@ -198,7 +198,7 @@ impl Output {
                     self.passes
                         .map_or(decoded.passes_decoded, |p| p.min(decoded.passes_decoded)),
                 );
-                self.complete &= decoded.complete && fetched == layout.entries[k].len;
+                self.complete &= decoded.complete && whole;
                 self.bytes_used += decoded.bytes_used;
                 if let Some(d) = decoded.damage {
                     self.note(Damage {

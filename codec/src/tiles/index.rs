@@ -168,6 +168,24 @@ pub(crate) fn parse_index(
     Ok(entries)
 }
 
+/// The first entry of each tile of `grid` and the entry count: one entry a tile, or with
+/// code blocks of `code_block` a head and one per block.
+fn tile_entries(grid: &TileGrid, code_block: Option<u32>) -> Vec<usize> {
+    let mut starts = Vec::with_capacity(grid.count() + 1);
+    let mut next = 0usize;
+    for k in 0..grid.count() {
+        starts.push(next);
+        let tile = grid.tile(k);
+        let blocks = code_block.map_or(0, |side| {
+            let side = side as usize;
+            tile.width.div_ceil(side) * tile.height.div_ceil(side)
+        });
+        next = next.saturating_add(1 + blocks);
+    }
+    starts.push(next);
+    starts
+}
+
 /// Fewest bytes an index entry takes (four varints of the compact form).
 const MIN_ENTRY_BYTES: usize = 4;
 
@@ -181,10 +199,14 @@ pub struct TiledLayout {
     pub header_len: u64,
     /// The tiles.
     pub grid: TileGrid,
-    /// One entry per tile, row-major.
+    /// The index entries in file order: one per tile, row-major, or with code blocks
+    /// per tile its head's and then its blocks' (row-major).
     pub entries: Vec<TileEntry>,
-    /// File offset of each tile's stream.
+    /// File offset of each entry's stream.
     pub offsets: Vec<u64>,
+    /// First entry of each tile, then the entry count: tile `k`'s entries are
+    /// `tile_entries[k]..tile_entries[k + 1]`.
+    pub tile_entries: Vec<usize>,
 }
 
 impl TiledLayout {
@@ -205,15 +227,21 @@ impl TiledLayout {
             tile_height: tiling.tile_height as usize,
             overlap: tiling.overlap as usize,
         };
-        let count = grid.count();
         // Every entry takes at least 4 bytes; a forged count cannot allocate beyond that.
-        let least = (count as u64).saturating_mul(MIN_ENTRY_BYTES as u64);
-        if logical_len(tiling.index_len).is_none_or(|len| len < least) {
-            return Err(CodecError::InvalidHeader(format!(
-                "a tile index of {} bytes for {count} tiles",
-                tiling.index_len
-            )));
-        }
+        let index_holds = |count: usize| {
+            let least = (count as u64).saturating_mul(MIN_ENTRY_BYTES as u64);
+            match logical_len(tiling.index_len).is_some_and(|len| len >= least) {
+                true => Ok(()),
+                false => Err(CodecError::InvalidHeader(format!(
+                    "a tile index of {} bytes for {count} entries",
+                    tiling.index_len
+                ))),
+            }
+        };
+        index_holds(grid.count())?;
+        let tile_entries = tile_entries(&grid, tiling.code_block);
+        let count = *tile_entries.last().expect("a start");
+        index_holds(count)?;
         if tiling.index_len > max_index_bytes {
             return Err(CodecError::LimitExceeded {
                 what: "tile index bytes",
@@ -254,7 +282,16 @@ impl TiledLayout {
             grid,
             entries,
             offsets,
+            tile_entries,
         }))
+    }
+
+    /// Side of the code blocks the tiles are cut into, if they are.
+    pub fn code_block(&self) -> Option<usize> {
+        self.header
+            .tiling
+            .and_then(|t| t.code_block)
+            .map(|side| side as usize)
     }
 
     /// Whether the tiles' streams have the tile layout (see [`Header::parse_tile`]).

@@ -6,8 +6,7 @@
 //! depend on the number of threads.
 
 mod allocate;
-// Used by the research measurement until the format has code blocks.
-#[cfg(any(test, feature = "research"))]
+mod blocked;
 mod blocks;
 mod index;
 mod stream;
@@ -18,11 +17,8 @@ use std::io;
 
 pub use allocate::allocate;
 pub(crate) use allocate::allocate_points;
-#[cfg(feature = "research")]
-pub(crate) use blocks::{Block, BlockGrid};
+pub(crate) use blocked::{encode as encode_blocked, unit_grid};
 pub use decode::decode_tile;
-#[cfg(feature = "research")]
-pub(crate) use index::write_index;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
 pub use stream::{encode_tile, EncodedTile, TileSummary};
@@ -252,7 +248,19 @@ impl RasterInfo {
 /// order). The tiles' streams follow, in the same order.
 pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> Vec<u8> {
     let entries: Vec<TileEntry> = tiles.iter().map(|t| t.entry.clone()).collect();
-    let index = frame(&index::write_index(&entries, true));
+    file_head(info, (grid, None), tiles, &entries)
+}
+
+/// The header and framed index of a tiled file on `grid` (its tiles cut into code
+/// blocks of `code_block` when given) whose tiles are `tiles` and whose index lists
+/// `entries`.
+pub(crate) fn file_head(
+    info: &RasterInfo,
+    (grid, code_block): (&TileGrid, Option<u32>),
+    tiles: &[TileSummary],
+    entries: &[TileEntry],
+) -> Vec<u8> {
+    let index = frame(&index::write_index(entries, true));
     let first = tiles.first().expect("a grid has tiles");
     let mut header = Header::whole_raster(
         info.width as u32,
@@ -277,6 +285,7 @@ pub fn tiled_head(info: &RasterInfo, grid: &TileGrid, tiles: &[TileSummary]) -> 
         overlap: grid.overlap as u32,
         index_len: index.len() as u64,
         compact_tiles: true,
+        code_block,
     });
     let mut out = header.to_bytes();
     out.extend_from_slice(&index);
@@ -588,6 +597,10 @@ pub(crate) fn decode_layout(
         check_memory(layout, w, options, workers.count())?;
     }
     let lengths = tile_lengths(layout, options.max_bytes)?;
+    if layout.code_block().is_some() {
+        let plan = (windows, &lengths[..]);
+        return blocked::decode_windows(source, layout, plan, options, before_output, deliver);
+    }
     let touched: Vec<Vec<usize>> = windows
         .iter()
         .map(|w| {
@@ -606,7 +619,8 @@ pub(crate) fn decode_layout(
                 before_output();
                 decode::Output::new(&layout.header, *window)
             });
-            output.place(k, layout, fetched, result, options.strict)?;
+            let whole = fetched == layout.entries[k].len;
+            output.place(k, layout, whole, result, options.strict)?;
         }
         let output = output.unwrap_or_else(|| {
             before_output();

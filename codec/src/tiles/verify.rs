@@ -1,8 +1,10 @@
 //! Checking every checksum of a tiled file: the index, then each tile's header and
-//! sections, each tile reported on its own line.
+//! sections, each tile reported on its own line (and with code blocks, each block).
 
 use super::TiledLayout;
-use crate::container::{logical_len, verify, verify_tile, SectionCheck, Verification, CHUNK};
+use crate::container::{
+    check_frames, logical_len, verify, verify_tile, SectionCheck, Verification, CHUNK,
+};
 use crate::error::CodecError;
 
 /// Checks a tiled file: one section for the index, then one per tile (its header and all
@@ -50,24 +52,53 @@ pub(crate) fn verify_tiled(data: &[u8]) -> Result<Verification, CodecError> {
     };
     let mut sections = vec![index];
     let mut usable = layout.head_len();
-    for (k, (entry, &offset)) in layout.entries.iter().zip(&layout.offsets).enumerate() {
-        let start = (offset as usize).min(data.len());
-        let end = (offset.saturating_add(entry.len) as usize).min(data.len());
-        let bytes = &data[start..end];
-        let found = match layout.compact_tiles() {
-            true => verify_tile(bytes),
-            false => verify(bytes),
-        };
-        let check = tile_check(found, bytes.len(), (k as u32, offset, entry.len));
-        if check.damaged_at.is_none() {
-            usable += (end - start) as u64;
+    for k in 0..layout.grid.count() {
+        let entries = layout.tile_entries[k]..layout.tile_entries[k + 1];
+        for e in entries.clone() {
+            let (entry, offset) = (&layout.entries[e], layout.offsets[e]);
+            let start = (offset as usize).min(data.len());
+            let end = (offset.saturating_add(entry.len) as usize).min(data.len());
+            let bytes = &data[start..end];
+            let check = if e == entries.start {
+                let found = match layout.compact_tiles() {
+                    true => verify_tile(bytes),
+                    false => verify(bytes),
+                };
+                tile_check(found, bytes.len(), (k as u32, offset, entry.len))
+            } else {
+                block_check(bytes, (k as u32, offset, entry.len))
+            };
+            if check.damaged_at.is_none() {
+                usable += (end - start) as u64;
+            }
+            sections.push(check);
         }
-        sections.push(check);
     }
     let trailing = (data.len() as u64).saturating_sub(layout.file_len());
     Ok(tiled_verification(
         header, header_len, sections, trailing, usable,
     ))
+}
+
+/// The checksums of a code block of tile `tile` (its head byte, then its framed
+/// payload) as one section, from its `available` bytes.
+fn block_check(available: &[u8], (tile, offset, len): (u32, u64, u64)) -> SectionCheck {
+    let framed = len.saturating_sub(1) as usize;
+    let found = check_frames(available.get(1..).unwrap_or(&[]), framed);
+    let chunks = framed.div_ceil(CHUNK + 4) as u64;
+    SectionCheck {
+        name: "code block",
+        tile: Some(tile),
+        offset,
+        framed_len: len,
+        chunks,
+        verified_chunks: match found.complete {
+            true => chunks,
+            false => (found.data_len / CHUNK) as u64,
+        },
+        damaged_at: found.damaged_at.map(|at| offset + 1 + at as u64),
+        complete: found.complete && available.len() as u64 == len,
+    }
 }
 
 /// One tile's checksums as one section, from what verifying its `available` bytes
