@@ -13,8 +13,8 @@ use std::sync::Arc;
 
 use thiserror::Error;
 use wavemesh_codec::tiles::{
-    cut_to_budget, encode_block, encode_tile, tile_cap, tiled_head, EncodedTile, RasterInfo,
-    TileSummary,
+    blocked_head, cut_to_budget, cut_units, encode_block, encode_tile, tile_cap, tiled_head,
+    EncodedTile, EncodedUnit, RasterInfo, TileEntry, TileSummary,
 };
 use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid, Window};
 
@@ -105,6 +105,70 @@ pub fn encode_tiled(
         }
     }
     let head = tiled_head(info, grid, &summaries);
+    let tiles_len = spool.stream_position()?;
+    spool.seek(SeekFrom::Start(0))?;
+    crate::atomic::write_atomic(output, |w| copy_out(&head, &mut spool, w))?;
+    Ok(TiledEncoded {
+        bytes: head.len() as u64 + tiles_len,
+        head_bytes: head.len() as u64,
+        tiles: summaries,
+    })
+}
+
+/// [`encode_tiled`] for a file whose tiles are cut into code blocks of `side` (`grid`
+/// from [`wavemesh_codec::tiles::unit_grid`]): each tile is read, coded (its blocks on
+/// `options.threads` threads) and, without a byte budget, spooled; with one, kept
+/// (each block coded up to a cap, see [`EncodedUnit::encode`]) until the budget is
+/// shared. The bytes are those of an in-memory encode.
+pub fn encode_blocked(
+    bands: &mut RowBands,
+    info: &RasterInfo,
+    (grid, side): (&TileGrid, usize),
+    options: &EncodeOptions,
+    block_width: usize,
+    output: &Path,
+    rows_done: &mut dyn FnMut(usize),
+) -> Result<TiledEncoded, TiledEncodeError> {
+    let mut spool = tempfile::tempfile()?;
+    let mut kept: Vec<EncodedUnit> = Vec::new();
+    let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
+    let mut entries: Vec<TileEntry> = Vec::new();
+    let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
+    let samples = (grid.width * grid.height) as u64;
+    let mut outcome = Ok(());
+    read_blocks(bands, grid, &blocks, &mut |b, band| {
+        let (row, columns) = &blocks[b];
+        outcome = band.map_err(TiledEncodeError::from).and_then(|band| {
+            let origin = grid.block(*row, columns.clone());
+            for k in grid.row(*row).start + columns.start..grid.row(*row).start + columns.end {
+                let w = grid.tile(k);
+                let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
+                let unit = EncodedUnit::encode(&part, options, side, samples)?;
+                summaries.push(unit.summary().clone());
+                match options.budget_bytes {
+                    Some(_) => kept.push(unit),
+                    None => {
+                        entries.extend(unit.entries());
+                        spool.write_all(&unit.bytes())?;
+                    }
+                }
+            }
+            if columns.end == grid.columns() {
+                rows_done(row + 1);
+            }
+            Ok(())
+        });
+        outcome.is_ok()
+    });
+    outcome?;
+    if let Some(budget) = options.budget_bytes {
+        cut_units(&mut kept, info, (grid, side), budget)?;
+        for unit in &kept {
+            entries.extend(unit.entries());
+            spool.write_all(&unit.bytes())?;
+        }
+    }
+    let head = blocked_head(info, (grid, side), &summaries, &entries);
     let tiles_len = spool.stream_position()?;
     spool.seek(SeekFrom::Start(0))?;
     crate::atomic::write_atomic(output, |w| copy_out(&head, &mut spool, w))?;

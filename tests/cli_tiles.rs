@@ -357,3 +357,81 @@ fn views_of_a_tiled_file_say_they_need_one_stream() {
     }
     assert!(!glb.exists());
 }
+
+#[test]
+fn code_blocks_stream_like_memory_and_name_their_damage() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 1100, 600);
+    let encode = |name: &str, extra: &[&str]| {
+        let path = dir.path().join(name);
+        let mut args = vec![
+            "encode",
+            s(&tif),
+            "-o",
+            s(&path),
+            "--block",
+            "256",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        json(&args);
+        std::fs::read(&path).unwrap()
+    };
+    for rate in [&[][..], &["--bpp", "0.5"][..]] {
+        let streamed = encode("one.ezw", &[&["--threads", "1"], rate].concat());
+        assert_eq!(
+            streamed,
+            encode("two.ezw", &[&["--threads", "2"], rate].concat())
+        );
+        // --verify encodes in memory: the same bytes again.
+        assert_eq!(
+            streamed,
+            encode("memory.ezw", &[&["--verify"], rate].concat())
+        );
+    }
+    let lossless = dir.path().join("one.ezw");
+    encode("one.ezw", &[]);
+    let info = json(&["info", s(&lossless), "--json"]);
+    // 1100 = 2 tiles of 768 (whole blocks of 256; the last 332), 600 = one.
+    assert_eq!(
+        (info["tiles"].as_u64(), info["tile_width"].as_u64()),
+        (Some(2), Some(768))
+    );
+    assert_eq!(
+        (info["code_block"].as_u64(), info["blocks"].as_u64()),
+        (Some(256), Some(15))
+    );
+    let out = dir.path().join("out.tif");
+    json(&["decode", s(&lossless), "-o", s(&out), "--json"]);
+    assert_eq!(read(&out).samples, read(&tif).samples);
+    // A window reads the blocks around it, not the file.
+    let window = json(&[
+        "decode",
+        s(&lossless),
+        "-o",
+        s(&out),
+        "--window",
+        "300,300,50,50",
+        "--json",
+    ]);
+    let file_bytes = window["file_bytes"].as_u64().unwrap();
+    assert!(window["bytes_read"].as_u64().unwrap() < file_bytes / 2 + 65536);
+    let mut bytes = std::fs::read(&lossless).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 0x20;
+    let damaged = dir.path().join("d.ezw");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let verify = wavemesh(&["verify", s(&damaged)]);
+    assert_eq!(verify.status.code(), Some(3));
+    let said = String::from_utf8_lossy(&verify.stdout).to_string();
+    assert!(
+        said.contains("code block") && said.contains("DAMAGED"),
+        "{said}"
+    );
+    let decode = wavemesh(&["decode", s(&damaged), "-o", s(&out)]);
+    assert!(decode.status.success());
+    assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+    // Sides that are not multiples of 64: a usage error.
+    let bad = wavemesh(&["encode", s(&tif), "-o", s(&out), "--block", "100"]);
+    assert_eq!(bad.status.code(), Some(2));
+}

@@ -6,7 +6,7 @@ use serde::Serialize;
 use wavemesh::byte_source::FileSource;
 use wavemesh::metrics::{self, Distortion};
 use wavemesh_codec::format::{physical_offset, valid_sample_count};
-use wavemesh_codec::tiles::{read_header, TiledLayout};
+use wavemesh_codec::tiles::{read_header, unit_grid, TiledLayout};
 use wavemesh_codec::TileGrid;
 use wavemesh_codec::{
     decode as decode_stream, decode_window, encode as encode_raster, DecodeOptions, EncodeOptions,
@@ -52,8 +52,7 @@ pub struct EncodeArgs {
     tile: u32,
     /// Code blocks of N samples a side (a multiple of 64): each tile becomes one
     /// transform whose blocks are coded and indexed on their own, so windows read only
-    /// the blocks they need and tile borders do not show. The raster is then read
-    /// whole (no streaming encode yet).
+    /// the blocks they need and tile borders do not show.
     #[arg(long, value_name = "N")]
     block: Option<u32>,
     #[command(flatten)]
@@ -183,11 +182,20 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
     refuse_overwriting_input(&args.input, &args.output)?;
     let to_stdout = writes_to_stdout(&args.output, args.json)?;
     warn_about_output_extension(&args.output);
-    if args.tile > 0 && args.block.is_none() && !args.verify && args.reference.is_none() {
+    if args.tile > 0 && !args.verify && args.reference.is_none() {
         let mut bands = args.input_args.open_bands(&args.input)?;
-        let info = bands.info();
-        if let Some(grid) = TileGrid::balanced(info.width, info.height, args.tile as usize) {
-            return super::tiled_coding::encode(args, &mut bands, &grid, to_stdout);
+        let (width, height) = (bands.info().width, bands.info().height);
+        let tile = args.tile as usize;
+        let grid = match args.block {
+            Some(side) => {
+                check_block_side(side)?;
+                unit_grid(width, height, tile, side as usize)
+            }
+            None => TileGrid::balanced(width, height, tile),
+        };
+        if let Some(grid) = grid {
+            let blocks = args.block.map(|side| side as usize);
+            return super::tiled_coding::encode(args, &mut bands, (&grid, blocks), to_stdout);
         }
     }
     let mut raster = args.input_args.read_to_encode(&args.input)?;
@@ -306,6 +314,16 @@ pub(super) fn print_encode_report(
     }
 }
 
+/// Refuses a code block side the format cannot have.
+fn check_block_side(side: u32) -> Result<(), CliError> {
+    match side > 0 && side.is_multiple_of(64) {
+        true => Ok(()),
+        false => Err(CliError::Usage(format!(
+            "--block must be a positive multiple of 64, got {side}"
+        ))),
+    }
+}
+
 /// The encoder's options as `args` give them, for a raster of `samples` samples.
 pub(super) fn encode_options(args: &EncodeArgs, samples: u64) -> Result<EncodeOptions, CliError> {
     let budget = match args.bpp {
@@ -404,7 +422,9 @@ struct DecodeReport<'a> {
     bytes_used: u64,
     bpp: f64,
     passes_decoded: u32,
-    passes_total: usize,
+    /// Passes of the stream, the fewest of any tile (`null` with code blocks: each block
+    /// has its own, not listed once cut).
+    passes_total: Option<usize>,
     complete: bool,
     decode_seconds: f64,
     decode_msamples_per_second: f64,
@@ -534,8 +554,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         passes_total: match &layout {
             // A tiled file: the passes every tile has (passes_decoded is the least any
             // tile decoded).
-            Some(l) => l.entries.iter().map(|e| e.passes.len()).min().unwrap_or(0),
-            None => header.top_plane.map_or(0, |t| t as usize + 1),
+            Some(l) if l.code_block().is_some() => None,
+            Some(l) => Some(l.entries.iter().map(|e| e.passes.len()).min().unwrap_or(0)),
+            None => Some(header.top_plane.map_or(0, |t| t as usize + 1)),
         },
         complete: outcome.complete,
         decode_seconds: seconds,
@@ -564,7 +585,9 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             report.file_bytes,
             report.bpp,
             report.passes_decoded,
-            report.passes_total,
+            report
+                .passes_total
+                .map_or("?".to_string(), |total| total.to_string()),
             if report.complete { ", complete" } else { "" },
             seconds,
             report.decode_msamples_per_second

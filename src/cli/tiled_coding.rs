@@ -7,18 +7,19 @@ use std::path::Path;
 
 use wavemesh::byte_source::FileSource;
 use wavemesh::dem::{DemError, DemInfo, RowBands, TiledGeoTiffWriter, BLOCK_WIDTH};
-use wavemesh::tiled_encode::{encode_tiled, TiledEncodeError};
+use wavemesh::tiled_encode::{encode_blocked, encode_tiled, TiledEncodeError};
 use wavemesh_codec::tiles::{read_header, TiledLayout};
 use wavemesh_codec::{decode_windows, DecodeOptions, Raster, TileGrid, Window};
 
 use super::coding::{encode_options, print_encode_report, DecodeOutcome, EncodeArgs, EncodeFacts};
 use super::{read_failure, timed, CliError, Workload};
 
-/// Encodes `bands` on `grid` into `args.output` and reports it like any encode.
+/// Encodes `bands` on `grid` (its tiles cut into code blocks of `code_block`, if given)
+/// into `args.output` and reports it like any encode.
 pub fn encode(
     args: &EncodeArgs,
     bands: &mut RowBands,
-    grid: &TileGrid,
+    (grid, code_block): (&TileGrid, Option<usize>),
     to_stdout: bool,
 ) -> Result<(), CliError> {
     let mut info = bands.info().clone();
@@ -34,15 +35,27 @@ pub fn encode(
         args.json,
     );
     let (written, seconds, peak) = timed(|| {
-        encode_tiled(
-            bands,
-            &info,
-            grid,
-            &options,
-            BLOCK_WIDTH,
-            &args.output,
-            &mut |k| bar.show(k),
-        )
+        let rows_done = &mut |k| bar.show(k);
+        match code_block {
+            Some(side) => encode_blocked(
+                bands,
+                &info,
+                (grid, side),
+                &options,
+                BLOCK_WIDTH,
+                &args.output,
+                rows_done,
+            ),
+            None => encode_tiled(
+                bands,
+                &info,
+                grid,
+                &options,
+                BLOCK_WIDTH,
+                &args.output,
+                rows_done,
+            ),
+        }
     });
     bar.finish();
     let written = written.map_err(|e| match e {

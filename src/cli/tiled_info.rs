@@ -34,6 +34,10 @@ struct TiledInfoReport<'a> {
     tile_width: usize,
     tile_height: usize,
     tiles: usize,
+    /// Side of the code blocks the tiles are cut into (none: each tile one stream).
+    code_block: Option<usize>,
+    /// Code blocks in all.
+    blocks: Option<usize>,
     tile_bytes_min: u64,
     tile_bytes_median: u64,
     tile_bytes_max: u64,
@@ -51,8 +55,13 @@ const RATES: [f64; 7] = [0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0];
 /// Prints what `layout` says about the file (`file_len` bytes long).
 pub fn run(input: &Path, json: bool, layout: &TiledLayout, file_len: u64) {
     let header = &layout.header;
-    let mut lengths: Vec<u64> = layout.entries.iter().map(|e| e.len).collect();
+    let starts = &layout.tile_entries;
+    let mut lengths: Vec<u64> = starts
+        .windows(2)
+        .map(|pair| layout.entries[pair[0]..pair[1]].iter().map(|e| e.len).sum())
+        .collect();
     lengths.sort_unstable();
+    let code_block = layout.code_block();
     let report = TiledInfoReport {
         schema_version: SCHEMA_VERSION,
         command: "info",
@@ -65,6 +74,8 @@ pub fn run(input: &Path, json: bool, layout: &TiledLayout, file_len: u64) {
         tile_width: layout.grid.tile_width,
         tile_height: layout.grid.tile_height,
         tiles: layout.grid.count(),
+        code_block,
+        blocks: code_block.map(|_| layout.entries.len() - layout.grid.count()),
         tile_bytes_min: lengths[0],
         tile_bytes_median: lengths[lengths.len() / 2],
         tile_bytes_max: lengths[lengths.len() - 1],
@@ -141,8 +152,12 @@ fn print_text(r: &TiledInfoReport) {
             ""
         }
     );
+    let blocks = match (r.code_block, r.blocks) {
+        (Some(side), Some(count)) => format!(" in {count} code blocks of {side}x{side}"),
+        _ => String::new(),
+    };
     println!(
-        "  {} tiles of {}x{}: header {} B, index {} B, tiles {} .. {} B (median {}){}",
+        "  {} tiles of {}x{}{blocks}: header {} B, index {} B, tiles {} .. {} B (median {}){}",
         r.tiles,
         r.tile_width,
         r.tile_height,

@@ -47,7 +47,7 @@ pub struct Encoded {
 /// [`crate::tiles`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
     if let Some(side) = options.code_block {
-        if side == 0 || side % 64 != 0 {
+        if side == 0 || !side.is_multiple_of(64) {
             return Err(CodecError::InvalidParameters(format!(
                 "code blocks of {side} samples: the side must be a multiple of 64"
             )));

@@ -17,7 +17,8 @@ use std::io;
 
 pub use allocate::allocate;
 pub(crate) use allocate::allocate_points;
-pub(crate) use blocked::{encode as encode_blocked, unit_grid};
+pub(crate) use blocked::encode as encode_blocked;
+pub use blocked::{blocked_head, cut_units, unit_grid, EncodedUnit};
 pub use decode::decode_tile;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
