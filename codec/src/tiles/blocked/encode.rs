@@ -163,7 +163,7 @@ pub struct EncodedUnit {
 impl EncodedUnit {
     /// Codes `part`, a tile of a raster of `raster_samples` samples, in blocks of `side`
     /// as `options` say (their tile size aside), the blocks on `options.threads` threads:
-    /// each whole, or under a byte budget up to [`BLOCK_CAP_SHARES`] times its share of the
+    /// each whole, or under a byte budget up to 4 times its share of the
     /// budget by area (and 4 KiB).
     pub fn encode(
         part: &Raster,
