@@ -144,7 +144,7 @@ pub fn encode_blocked(
                 let w = grid.tile(k);
                 let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
                 let unit = EncodedUnit::encode(&part, options, side, samples)?;
-                summaries.push(unit.summary().clone());
+                summaries.push(unit.summary());
                 match options.budget_bytes {
                     Some(_) => kept.push(unit),
                     None => {

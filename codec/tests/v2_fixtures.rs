@@ -209,3 +209,34 @@ fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
     ];
     tiled_fixtures_decode(&cases, (40, 30, 2));
 }
+
+/// Files whose tiles are cut into code blocks (flag 15, first written by commit
+/// aa04d6a's encoder), from the same 120 × 90 terrain: lossless in one tile of 64²
+/// blocks, whole (the terrain itself) and at a 1500-byte budget, and a 9/7 file cut at
+/// 2 bpp in four tiles of one block each.
+#[test]
+fn code_block_files_decode_to_their_recorded_samples() {
+    let cases = [
+        ("blocks_i16_lossless", None, "tiled_i16_lossless", (120, 90)),
+        (
+            "blocks_i16_lossless",
+            Some(1500),
+            "blocks_i16_lossless.prefix1500",
+            (120, 90),
+        ),
+        ("blocks_i16_97_2bpp", None, "blocks_i16_97_2bpp", (64, 64)),
+    ];
+    for (name, budget, decoded, tile) in cases {
+        let options = DecodeOptions::default().with_max_bytes(budget);
+        let out = decode(&fixture(&format!("{name}.ezw")), &options).unwrap();
+        let tiling = out.header.tiling.expect("a tiled file");
+        assert_eq!((tiling.tile_width, tiling.tile_height), tile, "{name}");
+        assert_eq!(tiling.code_block, Some(64), "{name}");
+        assert!(out.damage.is_none(), "{name} damage");
+        assert_eq!(
+            raw(&out.raster.samples),
+            fixture(&format!("{decoded}.decoded")),
+            "{name} at {budget:?}"
+        );
+    }
+}

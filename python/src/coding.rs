@@ -101,7 +101,8 @@ pub fn raster_with(
 /// Encodes a 2-D array into `.ezw` bytes.
 #[pyfunction]
 #[pyo3(signature = (array, *, nodata=None, bpp=None, max_error=None, precision=None,
-    wavelet=None, geotransform=None, epsg=None, crs_wkt=None, tile=DEFAULT_TILE, threads=0))]
+    wavelet=None, geotransform=None, epsg=None, crs_wkt=None, tile=DEFAULT_TILE, block=None,
+    threads=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode<'py>(
     py: Python<'py>,
@@ -115,22 +116,25 @@ pub fn encode<'py>(
     epsg: Option<i64>,
     crs_wkt: Option<String>,
     tile: u32,
+    block: Option<u32>,
     threads: usize,
 ) -> PyResult<Bound<'py, PyBytes>> {
     let raster = raster_with(array, nodata, geotransform, epsg, crs_wkt)?;
     let options = encode_options(raster.len() as u64, bpp, max_error, precision, wavelet)?;
-    let options = tiled(options, tile, threads);
+    let options = tiled(options, (tile, block), threads);
     let encoded = py
         .detach(|| encode_raster(&raster, &options))
         .map_err(codec_error)?;
     Ok(PyBytes::new(py, &encoded.bytes))
 }
 
-/// `options` with the largest tile side `tile` (0: one stream whatever the size) and
-/// `threads` threads coding tiles (0: one per core), as `--tile` and `--threads` say.
-fn tiled(options: EncodeOptions, tile: u32, threads: usize) -> EncodeOptions {
+/// `options` with the largest tile side `tile` (0: one stream whatever the size), code
+/// blocks of `block` and `threads` threads coding tiles (0: one per core), as `--tile`,
+/// `--block` and `--threads` say.
+fn tiled(options: EncodeOptions, (tile, block): (u32, Option<u32>), threads: usize) -> EncodeOptions {
     options
         .with_tile_size((tile > 0).then_some(tile))
+        .with_code_block(block)
         .with_threads(threads)
 }
 
@@ -156,7 +160,7 @@ pub fn read_options(
 #[pyfunction]
 #[pyo3(signature = (path_in, path_out, *, bpp=None, max_error=None, precision=None,
     wavelet=None, terrain_rgb=false, accept_lossy_input=false, no_metadata_items=false,
-    max_samples=None, max_memory=None, tile=DEFAULT_TILE, threads=0))]
+    max_samples=None, max_memory=None, tile=DEFAULT_TILE, block=None, threads=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn encode_file(
     py: Python<'_>,
@@ -172,6 +176,7 @@ pub fn encode_file(
     max_samples: Option<u64>,
     max_memory: Option<u64>,
     tile: u32,
+    block: Option<u32>,
     threads: usize,
 ) -> PyResult<u64> {
     if let (Ok(a), Ok(b)) = (path_in.canonicalize(), path_out.canonicalize()) {
@@ -188,7 +193,7 @@ pub fn encode_file(
         raster.metadata.items.clear();
     }
     let options = encode_options(raster.len() as u64, bpp, max_error, precision, wavelet)?;
-    let options = tiled(options, tile, threads);
+    let options = tiled(options, (tile, block), threads);
     let encoded = py
         .detach(|| encode_raster(&raster, &options))
         .map_err(codec_error)?;

@@ -28,5 +28,6 @@ fn _wavemesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tile_encode::write_tiled, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::tiled_plan, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::decode_tile, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_decode::decode_blocked_tile, m)?)?;
     Ok(())
 }

@@ -26,9 +26,11 @@ fn open(path: &Path) -> PyResult<FileSource> {
 /// and index only: a dict of `width`, `height`, `tile_width`, `tile_height`, `overlap`
 /// (samples each tile's stream codes beyond the tile on each side, within the raster),
 /// `sample_type`, `nodata`, `compact_tiles` (the tiles' streams have the tile layout, as
-/// `decode_tile` needs to know), and per tile in grid order `offsets` (file byte where its
-/// stream starts), `lengths` (bytes of it the decode reads) and `passes` (its index
-/// entry's prefix length and error per pass, for `decode_tile`).
+/// `decode_tile` needs to know), `max_bytes` (the budget in bytes, if any), `code_block` (the side of the code blocks the tiles are
+/// cut into, or `None`: a tile of such a file is decoded with `decode_blocked_tile`),
+/// and per index entry (per tile in grid order without code blocks) `offsets` (file byte
+/// where its stream starts), `lengths` (bytes of it the decode reads) and `passes` (its
+/// index entry's prefix length and error per pass, for `decode_tile`).
 #[pyfunction]
 #[pyo3(signature = (path, *, bpp=None, nbytes=None))]
 pub fn tiled_plan<'py>(
@@ -63,6 +65,8 @@ pub fn tiled_plan<'py>(
     out.set_item("sample_type", layout.header.sample_type.name())?;
     out.set_item("nodata", layout.header.nodata)?;
     out.set_item("compact_tiles", layout.compact_tiles())?;
+    out.set_item("code_block", layout.code_block())?;
+    out.set_item("max_bytes", max_bytes)?;
     out.set_item("offsets", &layout.offsets)?;
     out.set_item("lengths", lengths)?;
     let passes: Vec<&[(u64, f64)]> = layout.entries.iter().map(|e| &e.passes[..]).collect();
@@ -122,5 +126,48 @@ pub fn decode_tile<'py>(
     }
     let mut tile = decoded.raster.crop(x, y, width, height);
     tile.nodata = nodata;
+    arrays_of(py, tile)
+}
+
+/// Decodes tile `(x, y, width, height)` (samples) of a file whose tiles are cut into code
+/// blocks, at a budget of `nbytes` for the whole file (shared as `decode` shares it) or
+/// whole: its head and blocks read by range, as `decode` of that window does;
+/// `(samples, valid)`. Damage, or a tile cut short by the end of the file, raise
+/// `CodecError`.
+#[pyfunction]
+#[pyo3(signature = (path, x, y, width, height, *, nbytes=None))]
+pub fn decode_blocked_tile<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    x: usize,
+    y: usize,
+    width: usize,
+    height: usize,
+    nbytes: Option<u64>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let mut source = open(&path)?;
+    let window = wavemesh_codec::Window {
+        x,
+        y,
+        width,
+        height,
+    };
+    let options = DecodeOptions::default()
+        .with_strict(true)
+        .with_threads(1)
+        .with_max_bytes(nbytes);
+    let at = |e: RustCodecError| {
+        CodecError::new_err(format!("{}: tile at ({x}, {y}): {e}", path.display()))
+    };
+    let decoded = py
+        .detach(|| wavemesh_codec::decode_window(&mut source, Some(window), &options))
+        .map_err(at)?;
+    if !decoded.complete && nbytes.is_none() {
+        return Err(at(RustCodecError::TruncatedHeader(
+            "the file ends inside the tile",
+        )));
+    }
+    let mut tile = decoded.raster;
+    tile.georef = None;
     arrays_of(py, tile)
 }

@@ -94,6 +94,22 @@ def test_open_ezw_equals_decode_whole_and_at_budgets(tmp_path):
         assert_same_decode(wavemesh.dask.open_ezw(path, **budget), wavemesh.decode(path, **budget))
 
 
+def test_open_ezw_of_code_blocks_equals_decode_whole_and_at_budgets(tmp_path):
+    dem = terrain(np.float32, (300, 420), seed=3)
+    dem[200:, :60] = np.nan
+    path = tmp_path / "dem.ezw"
+    path.write_bytes(wavemesh.encode(dem, tile=256, block=64))
+    lazy = wavemesh.dask.open_ezw(path)
+    # Tiles as equal as whole blocks of 64 allow: 300 rows in 192 and 108, 420 columns
+    # in 256 and 164.
+    assert lazy.chunks == ((192, 108), (256, 164))
+    whole = wavemesh.decode(path)
+    assert_same_decode(lazy, whole)
+    assert np.array_equal(whole.data, dem, equal_nan=True)
+    for budget in [dict(bpp=1.0), dict(nbytes=path.stat().st_size // 3)]:
+        assert_same_decode(wavemesh.dask.open_ezw(path, **budget), wavemesh.decode(path, **budget))
+
+
 def test_open_ezw_keeps_the_nodata_value_as_fill_value(tmp_path):
     dem = terrain(np.int16, (100, 100))
     dem[0, :] = -1

@@ -205,6 +205,7 @@ def encode(
     transform: Any = None,
     crs: Any = None,
     tile: int = 1024,
+    block: Optional[int] = None,
     threads: int = 0,
 ) -> bytes:
     """Encodes a 2-D array into ``.ezw`` bytes.
@@ -226,8 +227,10 @@ def encode(
     An array with a side longer than ``tile`` is coded as independent tiles (as equal
     as the array allows) with an index, so :func:`decode` of a ``window`` or at a rate
     reads only what it needs; ``tile=0`` codes one stream whatever the size (what
-    :func:`mesh` needs). ``threads`` code tiles in parallel (0: one per core); the
-    bytes do not depend on it.
+    :func:`mesh` needs). ``block`` (a multiple of 64) makes each tile one transform
+    coded in code blocks of that side, each indexed on its own: windows read the blocks
+    they need and tile borders do not show (``--block``). ``threads`` code tiles in
+    parallel (0: one per core); the bytes do not depend on it.
     """
     if np.ma.isMaskedArray(array):
         array, nodata = _fill_masked(array, nodata)
@@ -243,6 +246,7 @@ def encode(
         epsg=epsg,
         crs_wkt=wkt,
         tile=_count("tile", tile),
+        block=_count("block", block),
         threads=_count("threads", threads),
     )
 
@@ -261,6 +265,7 @@ def encode_file(
     max_samples: Optional[int] = None,
     max_memory: Optional[int] = None,
     tile: int = 1024,
+    block: Optional[int] = None,
     threads: int = 0,
 ) -> int:
     """Encodes a DEM file into a ``.ezw`` file, as ``wavemesh encode`` does; returns the
@@ -271,7 +276,7 @@ def encode_file(
     georeferencing and GDAL metadata (``no_metadata_items=True`` leaves out the free
     items). ``max_samples`` / ``max_memory`` refuse larger rasters before reading them
     (defaults 2³¹ samples, 2 GiB). The output is written atomically and never replaces
-    the input. Quality, ``tile`` and ``threads`` options as in :func:`encode`.
+    the input. Quality, ``tile``, ``block`` and ``threads`` options as in :func:`encode`.
     """
     return _wavemesh.encode_file(
         os.fspath(path_in),
@@ -286,6 +291,7 @@ def encode_file(
         max_samples=_count("max_samples", max_samples),
         max_memory=_count("max_memory", max_memory),
         tile=_count("tile", tile),
+        block=_count("block", block),
         threads=_count("threads", threads),
     )
 

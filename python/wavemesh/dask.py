@@ -228,6 +228,8 @@ class _TileReader:
         self.overlap = plan["overlap"]
         self.nodata = plan["nodata"]
         self.compact_tiles = plan["compact_tiles"]
+        self.code_block = plan["code_block"]
+        self.max_bytes = plan["max_bytes"]
         self.offsets = plan["offsets"]
         self.lengths = plan["lengths"]
         self.passes = plan["passes"]
@@ -249,6 +251,11 @@ class _TileReader:
         y, x = row * tile_height, column * tile_width
         if (rows.start, rows.stop, columns.start, columns.stop) != (y, y + height, x, x + width):
             raise IndexError(f"reads whole tiles only, not {key!r}")
+        if self.code_block is not None:
+            samples, valid = _wavemesh.decode_blocked_tile(
+                self.path, x, y, width, height, nbytes=self.max_bytes
+            )
+            return self._masked(samples, valid)
         k = row * len(self.chunks[1]) + column
         grid = (tile_width, tile_height, self.overlap)
         coded_rows, coded_columns = _coded_window(k, grid, self.shape)
@@ -268,6 +275,10 @@ class _TileReader:
             compact_tiles=self.compact_tiles,
             passes=self.passes[k],
         )
+        return self._masked(samples, valid)
+
+    def _masked(self, samples: "np.ndarray", valid: "np.ndarray") -> "np.ma.MaskedArray":
+        """A decoded tile as a chunk: masked at voids, a fill value Dask can ship."""
         tile = wavemesh._masked(samples, valid, self.nodata)
         if not wavemesh._fill_value_fits(self.nodata, tile.dtype):
             # One the type holds: dask.distributed cannot ship a masked array whose fill
@@ -283,7 +294,8 @@ def open_ezw(
     tile.
 
     Opening reads the header and the tile index only; each task reads its tile's bytes
-    (one range read of the file, which must be reachable at the same path wherever the
+    (one range read; with code blocks, ``encode(..., block=N)``, the tile's head and each
+    block, by range; the file must be reachable at the same path wherever the
     task runs) and decodes them. ``bpp`` or ``nbytes`` is a budget for the whole file,
     shared among the tiles as :func:`wavemesh.decode` shares it, so
     ``open_ezw(path, bpp=b).compute()`` equals ``wavemesh.decode(path, bpp=b)``. Chunks

@@ -150,13 +150,15 @@ struct UnitPlan {
     residual: Vec<u8>,
 }
 
-/// A tile coded in code blocks: its head, what the file's header needs of it, and its
+/// A tile coded in code blocks: its head (header, nodata mask, residual section) and its
 /// blocks, each as coded until [`cut_units`] cuts them to a budget. A streaming encoder
 /// holds these (compressed) until their bytes go out.
 #[derive(Debug)]
 pub struct EncodedUnit {
-    head: Vec<u8>,
-    summary: TileSummary,
+    header: Header,
+    mask: Vec<u8>,
+    residual: Vec<u8>,
+    valid_range: Option<(f64, f64)>,
     blocks: Vec<CodedBlock>,
 }
 
@@ -173,7 +175,7 @@ impl EncodedUnit {
     ) -> Result<EncodedUnit, CodecError> {
         let levels = unit_levels(part.width, part.height, side, options.levels);
         let plan = plan_stream(part, options, levels)?;
-        let mut plan = UnitPlan {
+        let plan = UnitPlan {
             header: plan.header,
             prepared: plan.prepared,
             mask: plan.mask,
@@ -188,44 +190,72 @@ impl EncodedUnit {
         let coded = Workers::new(options.threads)?.map(0..blocks.len(), |b| {
             CodedBlock::encode(&grid, blocks[b], &plan, cap(blocks[b]))
         });
-        let sections: [&[u8]; 3] = [&plan.mask, &[], &plan.residual];
-        let (head, _) = assemble_as(Layout::Tile, &mut plan.header, sections);
         let any_valid = (0..part.len()).any(|i| part.is_valid(i));
-        let summary = TileSummary {
-            entry: TileEntry {
-                len: head.len() as u64,
-                head_len: head.len() as u64,
-                initial_error: 0.0,
-                passes: Vec::new(),
-            },
-            mode: plan.header.mode,
-            max_error: plan.header.max_error,
-            valid_range: any_valid.then_some(plan.header.valid_range),
-            wavelet: plan.header.wavelet,
-            levels: plan.header.levels,
-        };
         Ok(EncodedUnit {
-            head,
-            summary,
+            valid_range: any_valid.then_some(plan.header.valid_range),
+            header: plan.header,
+            mask: plan.mask,
+            residual: plan.residual,
             blocks: coded,
         })
     }
 
+    /// Whether a block was cut (by a budget or a cap): the residual section then goes,
+    /// and with it any error guarantee, as from a cut stream.
+    fn cut(&self) -> bool {
+        self.blocks.iter().any(CodedBlock::cut)
+    }
+
+    /// The head's header as the file holds it, its sections still unsized.
+    fn head_header(&self) -> Header {
+        let mut header = self.header.clone();
+        if self.cut() {
+            header.correction_step = 0.0;
+            header.mode = Mode::Lossy;
+            header.max_error = f64::INFINITY;
+        }
+        header
+    }
+
+    /// The head's bytes and its entry: the residual section, when kept, is its tail, past
+    /// `head_len` (a decode reads it last, when every block is whole).
+    fn head(&self) -> (Vec<u8>, TileEntry) {
+        let mut header = self.head_header();
+        let residual: &[u8] = if self.cut() { &[] } else { &self.residual };
+        let (bytes, header_len) =
+            assemble_as(Layout::Tile, &mut header, [&self.mask, &[], residual]);
+        let entry = TileEntry {
+            len: bytes.len() as u64,
+            head_len: (header_len + header.mask_len as usize) as u64,
+            initial_error: 0.0,
+            passes: Vec::new(),
+        };
+        (bytes, entry)
+    }
+
     /// What the file's header needs of the tile (its entry is its head's).
-    pub fn summary(&self) -> &TileSummary {
-        &self.summary
+    pub fn summary(&self) -> TileSummary {
+        let header = self.head_header();
+        TileSummary {
+            entry: self.head().1,
+            mode: header.mode,
+            max_error: header.max_error,
+            valid_range: self.valid_range,
+            wavelet: header.wavelet,
+            levels: header.levels,
+        }
     }
 
     /// Its index entries: its head's, then its blocks'.
     pub fn entries(&self) -> Vec<TileEntry> {
-        let head = std::iter::once(self.summary.entry.clone());
+        let head = std::iter::once(self.head().1);
         head.chain(self.blocks.iter().map(CodedBlock::entry))
             .collect()
     }
 
     /// Its bytes in the file: its head, then its blocks' streams.
     pub fn bytes(&self) -> Vec<u8> {
-        let mut bytes = self.head.clone();
+        let mut bytes = self.head().0;
         for block in &self.blocks {
             bytes.extend(block.bytes());
         }
@@ -295,7 +325,7 @@ pub fn blocked_head(
 
 /// The file: header, index, then tile by tile its head and its blocks.
 fn assemble(units: &[EncodedUnit], info: &RasterInfo, (grid, side): (&TileGrid, usize)) -> Vec<u8> {
-    let summaries: Vec<TileSummary> = units.iter().map(|u| u.summary.clone()).collect();
+    let summaries: Vec<TileSummary> = units.iter().map(EncodedUnit::summary).collect();
     let entries: Vec<TileEntry> = units.iter().flat_map(EncodedUnit::entries).collect();
     let mut bytes = blocked_head(info, (grid, side), &summaries, &entries);
     for unit in units {
@@ -314,15 +344,16 @@ pub fn cut_units(
     (grid, side): (&TileGrid, usize),
     budget: u64,
 ) -> Result<(), CodecError> {
-    let lossless = units.iter().all(|u| u.summary.mode == Mode::Lossless);
+    let lossless = units.iter().all(|u| u.header.mode == Mode::Lossless);
     let points: Vec<Vec<(u64, f64)>> = units
         .iter()
         .flat_map(|u| {
-            let head = vec![(u.summary.entry.len, 0.0)];
+            // Without its residual section: a cut tile drops it.
+            let head = vec![(u.head().1.head_len, 0.0)];
             std::iter::once(head).chain(u.blocks.iter().map(|b| b.points(lossless)))
         })
         .collect();
-    let summaries: Vec<TileSummary> = units.iter().map(|u| u.summary.clone()).collect();
+    let summaries: Vec<TileSummary> = units.iter().map(EncodedUnit::summary).collect();
     let bare: Vec<TileEntry> = points
         .iter()
         .map(|p| TileEntry {

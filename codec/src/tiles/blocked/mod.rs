@@ -1,6 +1,7 @@
 //! Tiles cut into code blocks (header flag 15): each tile is one transform, and the
-//! coefficients below each `side × side` square of its samples ([`BlockGrid`](super::blocks::BlockGrid)) are coded
-//! as an embedded stream of their own. The index lists, tile by tile, the tile's head (a
+//! coefficients below each `side × side` square of its samples
+//! ([`BlockGrid`](super::blocks::BlockGrid)) are coded as an embedded stream of their
+//! own. The index lists, tile by tile, the tile's head (a
 //! tile-layout header with no payload, the nodata mask and the residual section) and
 //! then its blocks. Block borders do not show as tile borders do (no transform edge
 //! there), while a reader still fetches only the blocks a window needs and, at a bit
