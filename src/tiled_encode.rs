@@ -139,9 +139,9 @@ pub fn encode_blocked(
     read_blocks(bands, grid, &blocks, &mut |b, band| {
         let (row, columns) = &blocks[b];
         outcome = band.map_err(TiledEncodeError::from).and_then(|band| {
-            let origin = grid.block(*row, columns.clone());
+            let origin = grid.coded_block(*row, columns.clone());
             for k in grid.row(*row).start + columns.start..grid.row(*row).start + columns.end {
-                let w = grid.tile(k);
+                let w = grid.coded(k);
                 let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
                 let unit = EncodedUnit::encode(&part, options, side, samples)?;
                 summaries.push(unit.summary());

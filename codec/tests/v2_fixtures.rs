@@ -211,9 +211,10 @@ fn tiled_files_of_whole_tile_streams_decode_to_their_recorded_samples() {
 }
 
 /// Files whose tiles are cut into code blocks (flag 15, first written by commit
-/// aa04d6a's encoder), from the same 120 × 90 terrain: lossless in one tile of 64²
-/// blocks, whole (the terrain itself) and at a 1500-byte budget, and a 9/7 file cut at
-/// 2 bpp in four tiles of one block each.
+/// aa04d6a's encoder, as of the overlapping tiles and joined slivers of the same stop),
+/// from the same 120 × 90 terrain: lossless in one tile of 64² blocks, whole (the terrain
+/// itself) and at a 1500-byte budget, and a 9/7 file cut at 2 bpp in four tiles of one
+/// block each, overlapping by two samples.
 #[test]
 fn code_block_files_decode_to_their_recorded_samples() {
     let cases = [

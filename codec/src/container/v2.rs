@@ -634,10 +634,8 @@ fn parse_tiled(
         true => Some(r.varint_u32("code block side")?).filter(|&side| side > 0),
         false => None,
     };
-    if flags & flag::CODE_BLOCKS != 0 && (code_block.is_none() || overlap > 0) {
-        return Err(CodecError::InvalidHeader(
-            "code blocks of side 0, or in overlapping tiles".into(),
-        ));
+    if flags & flag::CODE_BLOCKS != 0 && code_block.is_none() {
+        return Err(CodecError::InvalidHeader("code blocks of side 0".into()));
     }
     let (max_error, valid_range, nodata) = read_values(r, flags, kind.mode)?;
     let index_len = r.varint()?;

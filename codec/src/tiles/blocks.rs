@@ -7,8 +7,10 @@
 //!
 //! Blocks start at multiples of `block` from the top-left corner, which must be a
 //! multiple of `2^levels`: then a block's part of a level-`l` subband starts at its
-//! corner `>> l` and has the size of the same subband of a raster of the block's size
-//! (the last column and row of blocks narrower where the raster ends).
+//! corner `>> l` and has the size of the same subband of a raster of the block's size.
+//! The last column and row of blocks end with the raster: narrower, or, when less than a
+//! quarter of a block would be left for them, wider (the rest joins the blocks before
+//! it, as the two samples a tile codes beyond its edge do).
 
 use crate::wavelet::{self, Subband};
 
@@ -44,17 +46,36 @@ impl BlockGrid {
 
     /// Every block, row-major.
     pub fn blocks(&self) -> impl Iterator<Item = Block> + '_ {
-        let columns = self.width.div_ceil(self.block);
-        let rows = self.height.div_ceil(self.block);
+        let (columns, rows) = (self.along(self.width), self.along(self.height));
+        let side = |start: usize, index: usize, count: usize, len: usize| match index + 1 == count {
+            true => len - start,
+            false => self.block,
+        };
         (0..rows * columns).map(move |i| {
-            let (x, y) = (i % columns * self.block, i / columns * self.block);
+            let (column, row) = (i % columns, i / columns);
+            let (x, y) = (column * self.block, row * self.block);
             Block {
                 x,
                 y,
-                width: self.block.min(self.width - x),
-                height: self.block.min(self.height - y),
+                width: side(x, column, columns, self.width),
+                height: side(y, row, rows, self.height),
             }
         })
+    }
+
+    /// Number of blocks.
+    pub fn count(&self) -> usize {
+        self.along(self.width) * self.along(self.height)
+    }
+
+    /// Blocks along a side of `len` samples: one a `block`, the rest joining the last
+    /// one when it is under a quarter of a block.
+    fn along(&self, len: usize) -> usize {
+        let (whole, rest) = (len / self.block, len % self.block);
+        match whole > 0 && rest < self.block / 4 {
+            true => whole,
+            false => whole + usize::from(rest > 0),
+        }
     }
 
     /// The subbands of `block`'s own pyramid.
@@ -102,7 +123,13 @@ mod tests {
     #[test]
     fn blocks_partition_the_pyramid() {
         // Odd sides: the last blocks are narrow, and their subbands' halves uneven.
-        for (width, height, block, levels) in [(77, 50, 16, 4), (64, 64, 32, 5), (33, 9, 8, 3)] {
+        // 66 = 64 + 2: the two samples join the block before them.
+        for (width, height, block, levels) in [
+            (77, 50, 16, 4),
+            (64, 64, 32, 5),
+            (33, 9, 8, 3),
+            (66, 130, 32, 4),
+        ] {
             let grid = BlockGrid::new(width, height, block, levels).unwrap();
             let all: Vec<u32> = (0..(width * height) as u32).collect();
             let mut rebuilt = vec![u32::MAX; width * height];
@@ -114,6 +141,7 @@ mod tests {
             }
             assert_eq!(seen, width * height);
             assert_eq!(rebuilt, all, "{width}x{height} in {block}");
+            assert_eq!(grid.blocks().count(), grid.count());
         }
     }
 
@@ -150,5 +178,16 @@ mod tests {
         assert!(BlockGrid::new(100, 100, 24, 3).is_some());
         assert!(BlockGrid::new(100, 100, 24, 4).is_none());
         assert!(BlockGrid::new(100, 100, 0, 0).is_none());
+    }
+
+    #[test]
+    fn a_sliver_joins_the_block_before_it() {
+        let widths = |len: usize| -> Vec<usize> {
+            let grid = BlockGrid::new(len, 1, 64, 2).unwrap();
+            grid.blocks().map(|b| b.width).collect()
+        };
+        assert_eq!(widths(130), vec![64, 66]);
+        assert_eq!(widths(144), vec![64, 64, 16]);
+        assert_eq!(widths(10), vec![10]);
     }
 }

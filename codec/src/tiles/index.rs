@@ -3,6 +3,7 @@
 
 use std::io;
 
+use super::blocks::BlockGrid;
 use super::{ByteSource, TileGrid};
 use crate::container::{
     error_from_u16, error_to_u16, logical_len, unframe, write_varint, Header, Reader,
@@ -169,17 +170,16 @@ pub(crate) fn parse_index(
 }
 
 /// The first entry of each tile of `grid` and the entry count: one entry a tile, or with
-/// code blocks of `code_block` a head and one per block.
+/// code blocks of `code_block` a head and one per block of what the tile codes.
 fn tile_entries(grid: &TileGrid, code_block: Option<u32>) -> Vec<usize> {
     let mut starts = Vec::with_capacity(grid.count() + 1);
     let mut next = 0usize;
     for k in 0..grid.count() {
         starts.push(next);
-        let tile = grid.tile(k);
-        let blocks = code_block.map_or(0, |side| {
-            let side = side as usize;
-            tile.width.div_ceil(side) * tile.height.div_ceil(side)
-        });
+        let tile = grid.coded(k);
+        let blocks = code_block
+            .and_then(|side| BlockGrid::new(tile.width, tile.height, side as usize, 0))
+            .map_or(0, |blocks| blocks.count());
         next = next.saturating_add(1 + blocks);
     }
     starts.push(next);

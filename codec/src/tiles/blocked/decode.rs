@@ -65,7 +65,7 @@ fn decode_unit(
         Ok(unit) => unit,
         Err(e) => return Ok((Err(e), false)),
     };
-    let tile = layout.grid.tile(k);
+    let tile = layout.grid.coded(k);
     let margin = reach(unit.header.wavelet, unit.header.levels.into());
     let needed = Window {
         x: part.x.saturating_sub(margin + tile.x),
@@ -139,7 +139,7 @@ impl UnitHead {
         options: &DecodeOptions,
     ) -> Result<UnitHead, CodecError> {
         let (header, header_len) = Header::parse_tile(head)?;
-        let tile = layout.grid.tile(k);
+        let tile = layout.grid.coded(k);
         let side = layout.code_block().expect("a file with code blocks");
         let (width, height) = (header.width as usize, header.height as usize);
         let grid = BlockGrid::new(width, height, side, header.levels.into())

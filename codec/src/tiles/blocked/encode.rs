@@ -163,7 +163,8 @@ pub struct EncodedUnit {
 }
 
 impl EncodedUnit {
-    /// Codes `part`, a tile of a raster of `raster_samples` samples, in blocks of `side`
+    /// Codes `part`, the samples a tile's stream codes (the tile and its overlap, see
+    /// [`TileGrid::coded`]) of a raster of `raster_samples` samples, in blocks of `side`
     /// as `options` say (their tile size aside), the blocks on `options.threads` threads:
     /// each whole, or under a byte budget up to 4 times its share of the
     /// budget by area (and 4 KiB).
@@ -281,7 +282,7 @@ pub(crate) fn encode(
     let mut units = Vec::with_capacity(grid.count());
     let mut done = 0;
     for k in 0..grid.count() {
-        let w = grid.tile(k);
+        let w = grid.coded(k);
         let part = raster.crop(w.x, w.y, w.width, w.height);
         units.push(EncodedUnit::encode(
             &part,

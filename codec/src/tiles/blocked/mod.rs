@@ -26,8 +26,10 @@ pub(super) const BLOCK_HEAD: u64 = 1;
 
 /// The tiles a raster of `width × height` is coded in when its blocks are `side` a side
 /// (a multiple of 64): tiles no larger than `max_tile` (rounded up to whole blocks) and
-/// as equal as whole blocks allow, one tile when it fits. `None` when one block covers
-/// the raster (one stream does better).
+/// as equal as whole blocks allow, one tile when it fits, each coding
+/// [`TILE_OVERLAP`](super::TILE_OVERLAP) samples more on every side that has a neighbour
+/// (as independent tiles do: the transform's edge then falls outside the tile). `None`
+/// when one block covers the raster (one stream does better).
 pub fn unit_grid(width: usize, height: usize, max_tile: usize, side: usize) -> Option<TileGrid> {
     if width <= side && height <= side {
         return None;
@@ -39,7 +41,7 @@ pub fn unit_grid(width: usize, height: usize, max_tile: usize, side: usize) -> O
         height,
         tile_width: tile_side(width).min(width),
         tile_height: tile_side(height).min(height),
-        overlap: 0,
+        overlap: super::TILE_OVERLAP,
     })
 }
 
