@@ -11,6 +11,7 @@ use std::path::Path;
 use std::sync::mpsc::{sync_channel, Receiver};
 use std::sync::Arc;
 
+use rayon::prelude::*;
 use thiserror::Error;
 use wavemesh_codec::tiles::{
     blocked_head, cut_to_budget, cut_units, encode_block, encode_tile, tile_cap, tiled_head,
@@ -116,8 +117,10 @@ pub fn encode_tiled(
 }
 
 /// [`encode_tiled`] for a file whose tiles are cut into code blocks of `side` (`grid`
-/// from [`wavemesh_codec::tiles::unit_grid`]): each tile is read, coded (its blocks on
-/// `options.threads` threads) and, without a byte budget, spooled; with one, kept
+/// from [`wavemesh_codec::tiles::unit_grid`]): a band of tiles is read (the next one
+/// while this one's tiles are coded, unless `options.threads` is 1), its tiles coded on
+/// `options.threads` threads (a tile a thread, or one tile's blocks on all of them when
+/// the band has fewer tiles than threads) and, without a byte budget, spooled; with one, kept
 /// (each block coded up to a cap, see [`EncodedUnit::encode`]) until the budget is
 /// shared. The bytes are those of an in-memory encode.
 pub fn encode_blocked(
@@ -135,32 +138,68 @@ pub fn encode_blocked(
     let mut entries: Vec<TileEntry> = Vec::new();
     let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
     let samples = (grid.width * grid.height) as u64;
-    let mut outcome = Ok(());
-    read_blocks(bands, grid, &blocks, &mut |b, band| {
-        let (row, columns) = &blocks[b];
-        outcome = band.map_err(TiledEncodeError::from).and_then(|band| {
-            let origin = grid.coded_block(*row, columns.clone());
-            for k in grid.row(*row).start + columns.start..grid.row(*row).start + columns.end {
-                let w = grid.coded(k);
-                let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
-                let unit = EncodedUnit::encode(&part, options, side, samples)?;
-                summaries.push(unit.summary());
-                match options.budget_bytes {
-                    Some(_) => kept.push(unit),
-                    None => {
-                        entries.extend(unit.entries());
-                        spool.write_all(&unit.bytes())?;
-                    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.threads)
+        .build()
+        .map_err(io::Error::other)?;
+    let mut code_band = |b: usize, band: Result<Arc<Raster>, DemError>| {
+        let ((row, columns), band) = (&blocks[b], band?);
+        let origin = grid.coded_block(*row, columns.clone());
+        let first = grid.row(*row).start;
+        let tiles: Vec<usize> = (first + columns.start..first + columns.end).collect();
+        // A band of at least a tile per thread codes its tiles at once, each on one
+        // thread; a narrower one a tile at a time, its blocks on every thread.
+        let each = match tiles.len() >= pool.current_num_threads() {
+            true => options.clone().with_threads(1),
+            false => options.clone(),
+        };
+        let units: Vec<Result<EncodedUnit, CodecError>> = pool.install(|| {
+            tiles
+                .par_iter()
+                .map(|&k| {
+                    let w = grid.coded(k);
+                    let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
+                    EncodedUnit::encode(&part, &each, side, samples)
+                })
+                .collect()
+        });
+        for unit in units {
+            let unit = unit?;
+            summaries.push(unit.summary());
+            match options.budget_bytes {
+                Some(_) => kept.push(unit),
+                None => {
+                    entries.extend(unit.entries());
+                    spool.write_all(&unit.bytes())?;
                 }
             }
-            if columns.end == grid.columns() {
-                rows_done(row + 1);
-            }
-            Ok(())
+        }
+        if columns.end == grid.columns() {
+            rows_done(row + 1);
+        }
+        Ok::<(), TiledEncodeError>(())
+    };
+    if options.threads == 1 {
+        let mut outcome = Ok(());
+        read_blocks(bands, grid, &blocks, &mut |b, band| {
+            outcome = code_band(b, band);
+            outcome.is_ok()
         });
-        outcome.is_ok()
-    });
-    outcome?;
+        outcome?;
+    } else {
+        // The next band is read while this one's tiles are coded (their blocks on the
+        // coder's threads).
+        let blocks = &blocks[..];
+        std::thread::scope(|scope| {
+            let (send, read) = sync_channel(0);
+            scope.spawn(move || {
+                read_blocks(bands, grid, blocks, &mut |_, band| send.send(band).is_ok())
+            });
+            read.into_iter()
+                .enumerate()
+                .try_for_each(|(b, band)| code_band(b, band))
+        })?;
+    }
     if let Some(budget) = options.budget_bytes {
         cut_units(&mut kept, info, (grid, side), budget)?;
         for unit in &kept {

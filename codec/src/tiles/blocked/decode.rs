@@ -18,7 +18,8 @@ use crate::tiles::{ByteSource, TiledLayout, Window};
 /// Decodes `windows` of a file with code blocks from `source`, reading for each tile a
 /// window touches its head and the blocks within [`reach`] of the window, each
 /// `lengths[e]` bytes long (entry `e`), and hands each window to `deliver` (`false`
-/// stops).
+/// stops). As many tiles as there are threads are read, then decoded at once (each
+/// one's blocks on the same threads).
 pub(crate) fn decode_windows(
     source: &mut impl ByteSource,
     layout: &TiledLayout,
@@ -31,13 +32,25 @@ pub(crate) fn decode_windows(
     for window in windows {
         before_output();
         let mut output = crate::tiles::decode::Output::new(&layout.header, *window);
-        for k in 0..layout.grid.count() {
-            let Some(part) = layout.grid.tile(k).intersection(window) else {
-                continue;
-            };
-            let (result, whole) =
-                decode_unit(source, layout, (k, part), lengths, options, &workers)?;
-            output.place(k, layout, whole, result, options.strict)?;
+        let touched: Vec<(usize, Window)> = (0..layout.grid.count())
+            .filter_map(|k| Some((k, layout.grid.tile(k).intersection(window)?)))
+            .collect();
+        for run in touched.chunks(workers.count()) {
+            let fetched = run
+                .iter()
+                .map(|&(k, part)| FetchedUnit::read(source, layout, (k, part), lengths, options))
+                .collect::<Result<Vec<_>, CodecError>>()?;
+            let decodes = workers.map(0..fetched.len(), |u| {
+                let unit = fetched[u].as_ref().ok()?;
+                Some(unit.decode(options, &workers))
+            });
+            for ((&(k, _), unit), decoded) in run.iter().zip(fetched).zip(decodes) {
+                let (whole, result) = match unit {
+                    Ok(unit) => (unit.whole, decoded.expect("a tile read is decoded")),
+                    Err(head) => (false, Err(head)),
+                };
+                output.place(k, layout, whole, result, options.strict)?;
+            }
         }
         if !deliver(*window, output.finish(layout)) {
             break;
@@ -46,59 +59,92 @@ pub(crate) fn decode_windows(
     Ok(())
 }
 
-/// Reads and decodes tile `k` for `part` of it (raster coordinates): its decode (an
-/// error only when its head is missing or unreadable) and whether every byte read was
-/// all of its entry. An error when `source` fails.
-fn decode_unit(
-    source: &mut impl ByteSource,
-    layout: &TiledLayout,
-    (k, part): (usize, Window),
-    lengths: &[u64],
-    options: &DecodeOptions,
-    workers: &Workers,
-) -> Result<(Result<Decoded, CodecError>, bool), CodecError> {
-    let first = layout.tile_entries[k];
-    let read = |source: &mut _, e: usize| read_entry(source, layout, e, lengths[e]);
-    let head = read(source, first)?;
-    let mut whole = head.len() as u64 == layout.entries[first].len;
-    let unit = match UnitHead::parse(&head, layout, k, options) {
-        Ok(unit) => unit,
-        Err(e) => return Ok((Err(e), false)),
-    };
-    let tile = layout.grid.coded(k);
-    let margin = reach(unit.header.wavelet, unit.header.levels.into());
-    let needed = Window {
-        x: part.x.saturating_sub(margin + tile.x),
-        y: part.y.saturating_sub(margin + tile.y),
-        width: part.width + 2 * margin,
-        height: part.height + 2 * margin,
-    };
-    let mut pieces = Vec::new();
-    for (b, block) in unit.grid.blocks().enumerate() {
-        let area = Window {
-            x: block.x,
-            y: block.y,
-            width: block.width,
-            height: block.height,
+/// A tile's bytes as a window needs them: its head, parsed, and the blocks within
+/// [`reach`] of the window.
+struct FetchedUnit {
+    head: Vec<u8>,
+    unit: UnitHead,
+    pieces: Vec<Piece>,
+    /// Every entry read is all there is of it.
+    whole: bool,
+}
+
+impl FetchedUnit {
+    /// Reads tile `k`'s head and the blocks `part` of it (raster coordinates) needs: an
+    /// error when `source` fails; else the tile, or why its head could not be parsed
+    /// (the file ends inside it, or damage).
+    fn read(
+        source: &mut impl ByteSource,
+        layout: &TiledLayout,
+        (k, part): (usize, Window),
+        lengths: &[u64],
+        options: &DecodeOptions,
+    ) -> Result<Result<FetchedUnit, CodecError>, CodecError> {
+        let first = layout.tile_entries[k];
+        let read = |source: &mut _, e: usize| read_entry(source, layout, e, lengths[e]);
+        let head = read(source, first)?;
+        let mut whole = head.len() as u64 == layout.entries[first].len;
+        let unit = match UnitHead::parse(&head, layout, k, options) {
+            Ok(unit) => unit,
+            Err(e) => return Ok(Err(e)),
         };
-        if area.intersection(&needed).is_some() {
-            let e = first + 1 + b;
-            let bytes = read(source, e)?;
-            whole &= bytes.len() as u64 == layout.entries[e].len;
-            let at = layout.offsets[e] - layout.offsets[first];
-            pieces.push(Piece {
-                block,
-                at,
-                len: layout.entries[e].len,
-                bytes,
-            });
+        let needed = within_reach(part, layout.grid.coded(k), &unit.header);
+        let mut pieces = Vec::new();
+        for (b, block) in unit.grid.blocks().enumerate() {
+            let area = Window {
+                x: block.x,
+                y: block.y,
+                width: block.width,
+                height: block.height,
+            };
+            if area.intersection(&needed).is_some() {
+                let e = first + 1 + b;
+                let bytes = read(source, e)?;
+                whole &= bytes.len() as u64 == layout.entries[e].len;
+                let at = layout.offsets[e] - layout.offsets[first];
+                let len = layout.entries[e].len;
+                pieces.push(Piece {
+                    block,
+                    at,
+                    len,
+                    bytes,
+                });
+            }
         }
+        Ok(Ok(FetchedUnit {
+            head,
+            unit,
+            pieces,
+            whole,
+        }))
     }
-    let fetched = head.len() as u64 + pieces.iter().map(|p| p.bytes.len() as u64).sum::<u64>();
-    Ok((
-        unit.decode(&head, &pieces, (fetched, options), workers),
-        whole,
-    ))
+
+    /// The tile's decode from what was read.
+    fn decode(&self, options: &DecodeOptions, workers: &Workers) -> Result<Decoded, CodecError> {
+        let fetched = self.head.len() as u64;
+        let fetched = fetched
+            + self
+                .pieces
+                .iter()
+                .map(|p| p.bytes.len() as u64)
+                .sum::<u64>();
+        self.unit
+            .decode(&self.head, &self.pieces, (fetched, options), workers)
+    }
+}
+
+/// The samples of a tile coding `coded` (raster coordinates) whose blocks a decode of
+/// `part` of it reads, in the tile's coordinates: `part`, [`reach`] wider on every side.
+fn within_reach(part: Window, coded: Window, header: &Header) -> Window {
+    let margin = reach(header.wavelet, header.levels.into());
+    let (x, y) = (part.x - coded.x, part.y - coded.y);
+    let (left, top) = (x.saturating_sub(margin), y.saturating_sub(margin));
+    Window {
+        x: left,
+        y: top,
+        width: x + part.width + margin - left,
+        height: y + part.height + margin - top,
+    }
 }
 
 /// Up to `len` bytes of entry `e`.
