@@ -537,16 +537,8 @@ fn cut_planned(
         .collect();
     let mut reserve = tiled_head(info, grid, &bare).len() as u64;
     let least = reserve + points.iter().map(|p| p[0].0).sum::<u64>();
-    let too_small = || {
-        CodecError::InvalidParameters(format!(
-            "a budget of {budget} bytes is smaller than the headers, index and nodata masks ({least} bytes)"
-        ))
-    };
     for _ in 0..8 {
-        let lengths = budget
-            .checked_sub(reserve)
-            .and_then(|left| allocate_points(&points, left))
-            .ok_or_else(too_small)?;
+        let lengths = share_budget(&points, budget, (reserve, least))?;
         let cut = tiles
             .iter()
             .zip(planned)
@@ -564,7 +556,28 @@ fn cut_planned(
         }
         reserve += total - budget;
     }
-    Err(too_small())
+    Err(budget_too_small(budget, least))
+}
+
+/// The allocation ([`allocate_points`]) of what `budget` leaves after `reserve` bytes
+/// (header and index) over the entries' rate–distortion `points`; refused when not even
+/// their heads fit (`least` bytes with the header and index).
+pub(crate) fn share_budget(
+    points: &[Vec<(u64, f64)>],
+    budget: u64,
+    (reserve, least): (u64, u64),
+) -> Result<Vec<u64>, CodecError> {
+    budget
+        .checked_sub(reserve)
+        .and_then(|left| allocate_points(points, left))
+        .ok_or_else(|| budget_too_small(budget, least))
+}
+
+/// The refusal of a budget below the `least` bytes a file can take.
+pub(crate) fn budget_too_small(budget: u64, least: u64) -> CodecError {
+    CodecError::InvalidParameters(format!(
+        "a budget of {budget} bytes is smaller than the headers, index and nodata masks ({least} bytes)"
+    ))
 }
 
 /// Decodes `windows` of a tiled file from `source` one after the other, handing each to

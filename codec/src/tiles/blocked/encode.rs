@@ -13,7 +13,7 @@ use crate::tiles::blocks::{Block, BlockGrid};
 use crate::tiles::index::TileEntry;
 use crate::tiles::stream::TileSummary;
 use crate::tiles::workers::Workers;
-use crate::tiles::{allocate_points, file_head, RasterInfo, TileGrid};
+use crate::tiles::{budget_too_small, file_head, share_budget, RasterInfo, TileGrid};
 
 /// One block's coded stream and how much of it the file keeps.
 #[derive(Debug)]
@@ -366,16 +366,8 @@ pub fn cut_units(
         .collect();
     let mut reserve = file_head(info, (grid, Some(side as u32)), &summaries, &bare).len() as u64;
     let least = reserve + bare.iter().map(|e| e.len).sum::<u64>();
-    let too_small = || {
-        CodecError::InvalidParameters(format!(
-            "a budget of {budget} bytes is smaller than the headers, index and nodata masks ({least} bytes)"
-        ))
-    };
     for _ in 0..8 {
-        let lengths = budget
-            .checked_sub(reserve)
-            .and_then(|left| allocate_points(&points, left))
-            .ok_or_else(too_small)?;
+        let lengths = share_budget(&points, budget, (reserve, least))?;
         let mut lengths = lengths.into_iter();
         for unit in units.iter_mut() {
             lengths.next();
@@ -389,5 +381,5 @@ pub fn cut_units(
         }
         reserve += total - budget;
     }
-    Err(too_small())
+    Err(budget_too_small(budget, least))
 }
