@@ -68,3 +68,45 @@ fn forged_huge_headers_are_refused_or_read_within_the_file() {
         }
     }
 }
+
+/// A file in code blocks whose header claims a huge raster: its blocks are counted only
+/// once the index is read, so the claim cannot make the reader count or allocate them.
+#[test]
+fn forged_huge_headers_of_code_block_files_are_refused() {
+    let values = (0..200 * 100)
+        .map(|i| ((i % 200) + (i / 200)) as i16)
+        .collect();
+    let raster = Raster::new(200, 100, Samples::I16(values)).unwrap();
+    let options = EncodeOptions::lossless().with_code_block(Some(64));
+    let file = encode(&raster, &options).unwrap().bytes;
+    // 1.5 M a side in tiles of 200 × 100 with a 469 MiB index: the index could hold
+    // their 1.1 × 10^8 entries, so only reading it (the file ends first) refuses them.
+    let (mut header, header_len) = Header::parse(&file).unwrap();
+    (header.width, header.height) = (1_500_000, 1_500_000);
+    let tiling = header.tiling.as_mut().unwrap();
+    assert_eq!((tiling.tile_width, tiling.tile_height), (200, 100));
+    tiling.index_len = 16384 * 30_000 + 4 * 30_000;
+    let mut long_index = header.to_bytes();
+    long_index.extend_from_slice(&file[header_len..]);
+    assert!(
+        Header::parse(&long_index).is_ok(),
+        "the claim passes the header's checks"
+    );
+    let claims = [65_536, 1 << 24, u32::MAX].map(|side| forged(&file, side));
+    for (side, bytes) in [65_536, 1 << 24, u32::MAX, 1_500_000]
+        .into_iter()
+        .zip(claims.into_iter().chain([long_index]))
+    {
+        let Ok(_) = Header::parse(&bytes) else {
+            continue;
+        };
+        assert!(decode(&bytes, &DecodeOptions::default()).is_err(), "{side}");
+        let limit = Limits::default().max_memory / 4;
+        if let Ok(Some(layout)) = TiledLayout::read(&mut &bytes[..], limit) {
+            assert!(layout.entries.len() < 1 << 20, "{side}");
+        }
+        if let Ok(found) = verify(&bytes) {
+            assert!(found.usable_bytes <= bytes.len() as u64, "{side}");
+        }
+    }
+}

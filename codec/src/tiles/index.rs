@@ -239,9 +239,6 @@ impl TiledLayout {
             }
         };
         index_holds(grid.count())?;
-        let tile_entries = tile_entries(&grid, tiling.code_block);
-        let count = *tile_entries.last().expect("a start");
-        index_holds(count)?;
         if tiling.index_len > max_index_bytes {
             return Err(CodecError::LimitExceeded {
                 what: "tile index bytes",
@@ -264,6 +261,10 @@ impl TiledLayout {
                 "file ends inside the tile index",
             ));
         }
+        // Only now, with the index's bytes at hand, is the tile count known to be small.
+        let tile_entries = tile_entries(&grid, tiling.code_block);
+        let count = *tile_entries.last().expect("a start");
+        index_holds(count)?;
         let entries = parse_index(&index.bytes, count, tiling.compact_tiles)?;
         let mut offsets = Vec::with_capacity(count);
         let mut offset = header_len as u64 + tiling.index_len;
