@@ -143,7 +143,8 @@ pub fn repair_checksums(data: &[u8]) -> Option<Vec<u8>> {
 }
 
 /// Repairs a tiled file's index (`index_len` framed bytes after the header), then every
-/// tile the repaired index locates, each as a file of its own.
+/// tile the repaired index locates, each as a file of its own (and with code blocks,
+/// every block's framed payload).
 fn repair_tiled(out: &mut [u8], header_len: usize, index_len: u64) {
     let index_end = (header_len as u64)
         .saturating_add(index_len)
@@ -153,10 +154,15 @@ fn repair_tiled(out: &mut [u8], header_len: usize, index_len: u64) {
     let Ok(Some(layout)) = TiledLayout::read(&mut &out[..], DECODE_FUZZ_LIMITS.max_memory) else {
         return;
     };
-    for (entry, &offset) in layout.entries.iter().zip(&layout.offsets) {
+    let heads = &layout.tile_entries;
+    for (e, (entry, &offset)) in layout.entries.iter().zip(&layout.offsets).enumerate() {
         let start = (offset as usize).min(out.len());
         let end = (offset.saturating_add(entry.len) as usize).min(out.len());
-        if let Some(tile) = repair_checksums(&out[start..end]) {
+        if layout.code_block().is_some() && heads.binary_search(&e).is_err() {
+            // A code block: its head byte, then its framed payload.
+            let total = usize::try_from(entry.len.saturating_sub(1)).unwrap_or(usize::MAX);
+            reframe(&mut out[(start + 1).min(end)..end], total);
+        } else if let Some(tile) = repair_checksums(&out[start..end]) {
             out[start..end].copy_from_slice(&tile);
         }
     }

@@ -14,6 +14,7 @@ use crate::raster::Raster;
 use crate::tiles::blocks::{Block, BlockGrid};
 use crate::tiles::workers::Workers;
 use crate::tiles::{ByteSource, TiledLayout, Window};
+use crate::wavelet::max_levels;
 
 /// Decodes `windows` of a file with code blocks from `source`, reading for each tile a
 /// window touches its head and the blocks within [`reach`] of the window, each
@@ -176,8 +177,8 @@ struct UnitHead {
 }
 
 impl UnitHead {
-    /// Parses tile `k`'s head, refusing one that does not describe the tile, its blocks
-    /// or a stream the limits allow.
+    /// Parses tile `k`'s head, refusing one that does not describe the tile, blocks that
+    /// cannot have its levels, or a stream the limits allow.
     fn parse(
         head: &[u8],
         layout: &TiledLayout,
@@ -188,9 +189,11 @@ impl UnitHead {
         let tile = layout.grid.coded(k);
         let side = layout.code_block().expect("a file with code blocks");
         let (width, height) = (header.width as usize, header.height as usize);
-        let grid = BlockGrid::new(width, height, side, header.levels.into())
+        let levels = u32::from(header.levels);
+        let grid = BlockGrid::new(width, height, side, levels)
             .filter(|_| (width, height) == (tile.width, tile.height) && header.payload_len == 0)
             .filter(|_| header.sample_type == layout.header.sample_type)
+            .filter(|g| g.blocks().all(|b| levels <= max_levels(b.width, b.height)))
             .ok_or_else(|| {
                 CodecError::InvalidHeader(format!(
                     "tile {k}'s head does not describe its {}x{} samples in blocks of {side}",
