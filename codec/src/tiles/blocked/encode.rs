@@ -8,6 +8,7 @@ use crate::container::{
 use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, EncodedPayload};
 use crate::pipeline::{plan_stream, EncodeOptions, Encoded};
+use crate::quantize::Prepared;
 use crate::raster::Raster;
 use crate::tiles::blocks::{Block, BlockGrid};
 use crate::tiles::index::TileEntry;
@@ -25,9 +26,14 @@ struct CodedBlock {
 }
 
 impl CodedBlock {
-    /// Codes `block` of `plan`'s tile, up to `cap` payload bytes when given.
-    fn encode(grid: &BlockGrid, block: Block, plan: &UnitPlan, cap: Option<usize>) -> CodedBlock {
-        let prepared = &plan.prepared;
+    /// Codes `block` of a tile whose transform is `prepared`, up to `cap` payload bytes
+    /// when given.
+    fn encode(
+        grid: &BlockGrid,
+        block: Block,
+        prepared: &Prepared,
+        cap: Option<usize>,
+    ) -> CodedBlock {
         let coefficients = grid.gather(&prepared.coefficients, block);
         let layout = CoefficientLayout::new(
             block.width,
@@ -51,8 +57,16 @@ impl CodedBlock {
         }
     }
 
+    /// Whether the file keeps less than the whole stream (cut by a budget or a cap).
     fn cut(&self) -> bool {
         self.kept < self.payload.bytes.len() || !self.payload.complete
+    }
+
+    /// Its pass ends and checkpoints, as (payload bytes, estimated squared error).
+    fn marks(&self) -> impl Iterator<Item = (u64, f64)> + '_ {
+        let passes = self.payload.passes.iter();
+        let ends = passes.map(|p| (p.end_byte, p.squared_error));
+        ends.chain(self.payload.checkpoints.iter().copied())
     }
 
     /// The block's stream as the file holds it.
@@ -100,29 +114,17 @@ impl CodedBlock {
     /// 256), and a decode at a lower rate models the curve from the head to this end.
     fn cut_end(&self) -> Option<f64> {
         let kept = self.kept as u64;
-        let passes = self
-            .payload
-            .passes
-            .iter()
-            .map(|p| (p.end_byte, p.squared_error));
-        let within = passes.chain(self.payload.checkpoints.iter().copied());
-        let at_kept = within.filter(|&(end, _)| end <= kept).map(|p| p.1);
+        let at_kept = self.marks().filter(|&(end, _)| end <= kept).map(|p| p.1);
         (kept > 0).then(|| at_kept.fold(self.payload.initial_error, f64::min))
     }
 
     /// Every point a budget may cut the whole block at: head, checkpoints, pass ends,
-    /// the whole stream (error 0 when `lossless` and not capped), each at the bytes the block takes in
-    /// the file when cut there (its last chunk's checksum included).
+    /// the whole stream (error 0 when `lossless` and not capped), each at the bytes the
+    /// block takes in the file when cut there (its last chunk's checksum included).
     fn points(&self, lossless: bool) -> Vec<(u64, f64)> {
         let stored = |end: u64| BLOCK_HEAD + framed_len(end as usize) as u64;
-        let passes = self
-            .payload
-            .passes
-            .iter()
-            .map(|p| (p.end_byte, p.squared_error));
-        let marks = passes.chain(self.payload.checkpoints.iter().copied());
         let mut points = vec![(BLOCK_HEAD, self.payload.initial_error)];
-        points.extend(marks.map(|(end, e)| (stored(end), e)));
+        points.extend(self.marks().map(|(end, e)| (stored(end), e)));
         points.sort_by_key(|p| p.0);
         let last = points.last().expect("the head").1;
         let whole = stored(self.payload.bytes.len() as u64);
@@ -134,20 +136,13 @@ impl CodedBlock {
     /// Keeps as much payload as fits `len` bytes of stream.
     fn cut_to(&mut self, len: u64) {
         let room = len.saturating_sub(BLOCK_HEAD) as usize;
-        let mut kept = (room - room.div_ceil(CHUNK + 4) * 4).min(self.payload.bytes.len());
+        let framing = room.div_ceil(CHUNK + 4) * 4;
+        let mut kept = room.saturating_sub(framing).min(self.payload.bytes.len());
         while framed_len(kept) > room {
             kept -= 1;
         }
         self.kept = kept;
     }
-}
-
-/// A tile prepared for its blocks: the shared transform and the head's sections.
-struct UnitPlan {
-    prepared: crate::quantize::Prepared,
-    header: Header,
-    mask: Vec<u8>,
-    residual: Vec<u8>,
 }
 
 /// A tile coded in code blocks: its head (header, nodata mask, residual section) and its
@@ -176,12 +171,6 @@ impl EncodedUnit {
     ) -> Result<EncodedUnit, CodecError> {
         let levels = unit_levels(part.width, part.height, side, options.levels);
         let plan = plan_stream(part, options, levels)?;
-        let plan = UnitPlan {
-            header: plan.header,
-            prepared: plan.prepared,
-            mask: plan.mask,
-            residual: plan.residual,
-        };
         let grid = BlockGrid::new(part.width, part.height, side, levels).expect("aligned levels");
         let blocks: Vec<Block> = grid.blocks().collect();
         let cap = |b: Block| {
@@ -189,7 +178,7 @@ impl EncodedUnit {
             Some((BLOCK_CAP_SHARES * share / raster_samples as f64) as usize + 4096)
         };
         let coded = Workers::new(options.threads)?.map(0..blocks.len(), |b| {
-            CodedBlock::encode(&grid, blocks[b], &plan, cap(blocks[b]))
+            CodedBlock::encode(&grid, blocks[b], &plan.prepared, cap(blocks[b]))
         });
         let any_valid = (0..part.len()).any(|i| part.is_valid(i));
         Ok(EncodedUnit {
