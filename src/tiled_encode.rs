@@ -106,14 +106,7 @@ pub fn encode_tiled(
         }
     }
     let head = tiled_head(info, grid, &summaries);
-    let tiles_len = spool.stream_position()?;
-    spool.seek(SeekFrom::Start(0))?;
-    crate::atomic::write_atomic(output, |w| copy_out(&head, &mut spool, w))?;
-    Ok(TiledEncoded {
-        bytes: head.len() as u64 + tiles_len,
-        head_bytes: head.len() as u64,
-        tiles: summaries,
-    })
+    write_out(output, &head, spool, summaries)
 }
 
 /// [`encode_tiled`] for a file whose tiles are cut into code blocks of `side` (`grid`
@@ -202,19 +195,32 @@ pub fn encode_blocked(
     }
     if let Some(budget) = options.budget_bytes {
         cut_units(&mut kept, info, (grid, side), budget)?;
+        // A cut tile is no longer lossless: its summary as the file has it.
+        summaries = kept.iter().map(EncodedUnit::summary).collect();
         for unit in &kept {
             entries.extend(unit.entries());
             spool.write_all(&unit.bytes())?;
         }
     }
     let head = blocked_head(info, (grid, side), &summaries, &entries);
+    write_out(output, &head, spool, summaries)
+}
+
+/// Writes `head` (the header and index), then the tiles spooled to `spool`, to `output`
+/// atomically; `tiles` are their summaries.
+fn write_out(
+    output: &Path,
+    head: &[u8],
+    mut spool: File,
+    tiles: Vec<TileSummary>,
+) -> Result<TiledEncoded, TiledEncodeError> {
     let tiles_len = spool.stream_position()?;
     spool.seek(SeekFrom::Start(0))?;
-    crate::atomic::write_atomic(output, |w| copy_out(&head, &mut spool, w))?;
+    crate::atomic::write_atomic(output, |w| copy_out(head, &mut spool, w))?;
     Ok(TiledEncoded {
         bytes: head.len() as u64 + tiles_len,
         head_bytes: head.len() as u64,
-        tiles: summaries,
+        tiles,
     })
 }
 

@@ -377,7 +377,15 @@ fn code_blocks_stream_like_memory_and_name_their_damage() {
         json(&args);
         std::fs::read(&path).unwrap()
     };
-    for rate in [&[][..], &["--bpp", "0.5"][..]] {
+    // Lossless, 9/7 at a rate, and 5/3 cut a little below its lossless size: no block
+    // reaches its cap there, only the budget's cut makes the tiles lossy.
+    let lossless_bpp = encode("one.ezw", &[]).len() as f64 * 8.0 / (1100.0 * 600.0);
+    let near = format!("{:.3}", 0.95 * lossless_bpp);
+    for rate in [
+        &[][..],
+        &["--bpp", "0.5"],
+        &["--bpp", &near, "--wavelet", "53"],
+    ] {
         let streamed = encode("one.ezw", &[&["--threads", "1"], rate].concat());
         assert_eq!(
             streamed,
@@ -389,6 +397,8 @@ fn code_blocks_stream_like_memory_and_name_their_damage() {
             encode("memory.ezw", &[&["--verify"], rate].concat())
         );
     }
+    let cut = json(&["info", s(&dir.path().join("one.ezw")), "--json"]);
+    assert_eq!(cut["mode"], "lossy", "a 5/3 file cut below its size");
     let lossless = dir.path().join("one.ezw");
     encode("one.ezw", &[]);
     let info = json(&["info", s(&lossless), "--json"]);
