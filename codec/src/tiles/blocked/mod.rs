@@ -47,7 +47,7 @@ pub fn unit_grid(width: usize, height: usize, max_tile: usize, side: usize) -> O
 
 /// Decomposition levels of a `width × height` tile in blocks of `side`: those asked (or
 /// the default), at most what leaves each block's coarsest band 4 samples a side (6
-/// levels for blocks of 256 measured best: the zerotrees keep roots to share).
+/// levels for blocks of 256: best on two of three DEMs measured, README *Code blocks*).
 pub(super) fn unit_levels(width: usize, height: usize, side: usize, asked: Option<u32>) -> u32 {
     asked
         .unwrap_or_else(|| wavelet::default_levels(width, height))
