@@ -1,5 +1,5 @@
 //! A `.ezw` file on disk read by ranges ([`wavemesh_codec::ByteSource`]), counting the
-//! bytes it reads so reports can say how much of a file a window decode touched.
+//! distinct bytes it reads so reports can say how much of a file a decode touched.
 
 use std::fs::File;
 use std::io::{self, Read, Seek, SeekFrom};
@@ -15,7 +15,8 @@ use wavemesh_codec::ByteSource;
 pub struct FileSource {
     file: File,
     len: u64,
-    bytes_read: u64,
+    /// The byte ranges read from disk so far: sorted, disjoint, none touching another.
+    read: Vec<(u64, u64)>,
     head: Vec<u8>,
 }
 
@@ -27,7 +28,7 @@ impl FileSource {
         Ok(FileSource {
             file,
             len,
-            bytes_read: 0,
+            read: Vec::new(),
             head: Vec::new(),
         })
     }
@@ -42,9 +43,23 @@ impl FileSource {
         self.len == 0
     }
 
-    /// Bytes read so far.
+    /// Distinct bytes of the file read so far (a range read twice counts once).
     pub fn bytes_read(&self) -> u64 {
-        self.bytes_read
+        self.read.iter().map(|(start, end)| end - start).sum()
+    }
+
+    /// Adds `start..end` to the ranges read.
+    fn note_read(&mut self, start: u64, end: u64) {
+        if start >= end {
+            return;
+        }
+        // The ranges that overlap or touch it merge with it into one.
+        let first = self.read.partition_point(|r| r.1 < start);
+        let last = self.read.partition_point(|r| r.0 <= end);
+        let merged = self.read[first..last]
+            .iter()
+            .fold((start, end), |(s, e), r| (s.min(r.0), e.max(r.1)));
+        self.read.splice(first..last, [merged]);
     }
 }
 
@@ -65,7 +80,7 @@ impl ByteSource for FileSource {
             let read = (&mut self.file)
                 .take(end - cached_end)
                 .read_to_end(&mut out)?;
-            self.bytes_read += read as u64;
+            self.note_read(cached_end, cached_end + read as u64);
             // Reads that continue the kept start (the header, then the index) extend it;
             // one that runs to the end of the file (a whole stream) is the caller's to
             // keep, not a second copy's.
@@ -94,21 +109,26 @@ mod tests {
         assert_eq!(source.read_at(98, 10).unwrap(), vec![98, 99]);
         assert!(source.read_at(200, 10).unwrap().is_empty());
         assert_eq!(source.bytes_read(), 5);
-        // The start of the file is read once.
+        // The start of the file is read once (10..13 within it counts once).
         assert_eq!(source.read_at(0, 50).unwrap().len(), 50);
         assert_eq!(source.read_at(5, 20).unwrap()[0], 5);
-        assert_eq!(source.bytes_read(), 55);
+        assert_eq!(source.bytes_read(), 52);
         // Past the kept start: only the rest comes from disk, and is kept too.
         assert_eq!(
             source.read_at(40, 20).unwrap(),
             (40..60u8).collect::<Vec<_>>()
         );
-        assert_eq!(source.bytes_read(), 65);
+        assert_eq!(source.bytes_read(), 62);
         assert_eq!(source.read_at(0, 60).unwrap().len(), 60);
-        assert_eq!(source.bytes_read(), 65);
-        // A read elsewhere is not kept.
+        assert_eq!(source.bytes_read(), 62);
+        // A read elsewhere is not kept, and counts once however often it is read.
         assert_eq!(source.read_at(80, 5).unwrap(), vec![80, 81, 82, 83, 84]);
         assert_eq!(source.read_at(80, 5).unwrap().len(), 5);
-        assert_eq!(source.bytes_read(), 75);
+        assert_eq!(source.bytes_read(), 67);
+        // Ranges touching or overlapping those read merge with them.
+        assert_eq!(source.read_at(70, 40).unwrap().len(), 30);
+        assert_eq!(source.bytes_read(), 90);
+        assert_eq!(source.read_at(0, 100).unwrap().len(), 100);
+        assert_eq!(source.bytes_read(), 100);
     }
 }

@@ -445,3 +445,33 @@ fn code_blocks_stream_like_memory_and_name_their_damage() {
     let bad = wavemesh(&["encode", s(&tif), "-o", s(&out), "--block", "100"]);
     assert_eq!(bad.status.code(), Some(2));
 }
+
+#[test]
+fn a_small_tiled_file_decoded_at_a_rate_reports_that_rate_and_reads_each_byte_once() {
+    // The readers probe 64 KiB for the header and index, more than this whole file: the
+    // probes are read again for each tile row, but a byte read twice counts once, and the
+    // rate is that of the bytes the image needed, not of the file.
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 256, 256);
+    let ezw = dir.path().join("small.ezw");
+    let out = dir.path().join("out.tif");
+    json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&ezw),
+        "--tile",
+        "128",
+        "--bpp",
+        "1",
+        "--json",
+    ]);
+    let file_bytes = std::fs::metadata(&ezw).unwrap().len();
+    let report = json(&["decode", s(&ezw), "-o", s(&out), "--bpp", "0.25", "--json"]);
+    assert_eq!(report["tiles"], 4);
+    assert_eq!(report["bytes_read"].as_u64().unwrap(), file_bytes);
+    let used = report["bytes_used"].as_u64().unwrap();
+    assert!(used <= 256 * 256 / 32, "{used} bytes used for 0.25 bpp");
+    let bpp = report["bpp"].as_f64().unwrap();
+    assert_eq!(bpp, used as f64 * 8.0 / (256.0 * 256.0));
+}

@@ -418,8 +418,11 @@ struct DecodeReport<'a> {
     /// Tiles in the file (tiled files).
     tiles: Option<usize>,
     file_bytes: u64,
+    /// Distinct bytes of the file read (headers and indexes probed included).
     bytes_read: u64,
+    /// Bytes the decoded image needed: the prefix, or the tiles' prefixes and the head.
     bytes_used: u64,
+    /// `bytes_used` in bits per sample of the whole raster.
     bpp: f64,
     passes_decoded: u32,
     /// Passes of the stream, the fewest of any tile (`null` with code blocks: each block
@@ -549,7 +552,11 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         file_bytes: source.len(),
         bytes_read,
         bytes_used: outcome.bytes_used,
-        bpp: metrics::bits_per_sample(bytes_read, header.width as usize, header.height as usize),
+        bpp: metrics::bits_per_sample(
+            outcome.bytes_used,
+            header.width as usize,
+            header.height as usize,
+        ),
         passes_decoded: outcome.passes_decoded,
         passes_total: match &layout {
             // A tiled file: the passes every tile has (passes_decoded is the least any
@@ -581,7 +588,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             "{} -> {}: {} of {} bytes ({:.4} bpp), {}/{} passes{}, {:.3} s ({:.1} MS/s)",
             args.input.display(),
             args.output.display(),
-            report.bytes_read,
+            report.bytes_used,
             report.file_bytes,
             report.bpp,
             report.passes_decoded,
