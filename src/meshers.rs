@@ -7,9 +7,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use wavemesh_codec::{
-    decode, encode, CodecError, DecodeOptions, EncodeOptions, Quality, Raster, Samples,
-};
+use wavemesh_codec::{decode, encode, CodecError, DecodeOptions, EncodeOptions, Raster, Samples};
 
 use crate::lod::Surface;
 use crate::memory;
@@ -201,10 +199,7 @@ pub fn build(
 /// The zerotree mesh: lossless stream, decode with the significance map, tolerance or
 /// tolerance-searched budget.
 fn zerotree(raster: &Raster, surface: &Surface, budget: Budget) -> Result<GridMesh, MeshersError> {
-    let encoded = encode(
-        raster,
-        &EncodeOptions::new(Quality::Lossless, None).single_stream(),
-    )?;
+    let encoded = encode(raster, &EncodeOptions::zerotree_mesh())?;
     let options = DecodeOptions::default().with_significance_map(true);
     let decoded = decode(&encoded.bytes, &options)?;
     let map = decoded.significance.as_ref().expect("asked for");

@@ -251,7 +251,7 @@ pub fn measure(
     // 9/7 at 1 bpp, timed (OpenJPEG's -r 16 runs are the comparison).
     let mut at_one =
         EncodeOptions::new(Quality::Lossless, Some((samples / 8.0) as u64)).with_threads(1);
-    at_one.wavelet = Wavelet::Cdf97;
+    at_one = at_one.with_wavelet(Wavelet::Cdf97);
     let mut lossy_encode_times = Vec::new();
     let mut lossy_decode_times = Vec::new();
     for _ in 0..runs.max(1) {
@@ -265,7 +265,7 @@ pub fn measure(
 
     // Prefixes of one 9/7 stream at 2 bpp and of the lossless stream.
     let mut options = EncodeOptions::new(Quality::Lossless, Some((2.0 * samples / 8.0) as u64));
-    options.wavelet = Wavelet::Cdf97;
+    options = options.with_wavelet(Wavelet::Cdf97);
     let lossy = encode(&raster, &options).map_err(|e| codec_err(e.to_string()))?;
     let mut rates = Vec::new();
     for &bpp in &RATES {
@@ -678,11 +678,7 @@ pub fn compare_meshes(
             continue;
         };
         let crop = crop_raster(&raster, x0, y0, w, h).map_err(codec)?;
-        let encoded = encode(
-            &crop,
-            &EncodeOptions::new(Quality::Lossless, None).single_stream(),
-        )
-        .map_err(codec)?;
+        let encoded = encode(&crop, &EncodeOptions::zerotree_mesh()).map_err(codec)?;
         let options = DecodeOptions::default().with_significance_map(true);
         let decoded = decode(&encoded.bytes, &options).map_err(codec)?;
         let surface = Surface::of(&decoded.raster);

@@ -61,6 +61,8 @@ type Block = (usize, Range<usize>);
 /// depend on `block_width`. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
 /// coded up to about four times its share of the budget) until the budget is shared.
+/// The wavelet is settled on the raster's centre, read once more for it, as in memory
+/// ([`EncodeOptions::wavelet_chosen_for`]).
 /// `rows_done(k)` is called after each tile row, `k` rows of [`TileGrid::rows`] done.
 pub fn encode_tiled(
     bands: &mut RowBands,
@@ -75,6 +77,7 @@ pub fn encode_tiled(
     let mut kept: Vec<EncodedTile> = Vec::new();
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
     let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
+    let options = &wavelet_settled(bands, info, grid, &blocks, options)?;
     let mut take = |tile: EncodedTile| -> io::Result<()> {
         summaries.push(tile.summary.clone());
         if options.budget_bytes.is_some() {
@@ -130,6 +133,7 @@ pub fn encode_blocked(
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
     let mut entries: Vec<TileEntry> = Vec::new();
     let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
+    let options = &wavelet_settled(bands, info, grid, &blocks, options)?;
     let samples = (grid.width * grid.height) as u64;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.threads)
@@ -204,6 +208,27 @@ pub fn encode_blocked(
     }
     let head = blocked_head(info, (grid, side), &summaries, &entries);
     write_out(output, &head, spool, summaries)
+}
+
+/// `options` with the wavelet settled on the raster's centre, read for it
+/// ([`EncodeOptions::wavelet_chosen_for`], as an in-memory encode settles it). The
+/// limits are checked on the first band first: a raster they refuse is refused before
+/// anything is read.
+fn wavelet_settled(
+    bands: &mut RowBands,
+    info: &RasterInfo,
+    grid: &TileGrid,
+    blocks: &[Block],
+    options: &EncodeOptions,
+) -> Result<EncodeOptions, TiledEncodeError> {
+    if !(options.adaptive_wavelet && options.wavelet.is_reversible()) {
+        return Ok(options.clone());
+    }
+    if let Some((row, columns)) = blocks.first() {
+        bands.check_window(&grid.coded_block(*row, columns.clone()))?;
+    }
+    let centre = wavemesh_codec::wavelet_sample(info.width, info.height);
+    Ok(options.wavelet_chosen_for(&bands.read_window(centre)?))
 }
 
 /// Writes `head` (the header and index), then the tiles spooled to `spool`, to `output`

@@ -348,7 +348,8 @@ fn decode_meshes_at_a_threshold() {
     let dir = scratch("cli-mesh-tests");
     let input = sample("jacksboro_fault.tif");
     let ezw = dir.path().join("fault.ezw");
-    stdout(&["encode", s(&input), "-o", s(&ezw)]);
+    // The 5/3, as `table` codes it (the zerotree mesher's stream).
+    stdout(&["encode", s(&input), "-o", s(&ezw), "--wavelet", "53"]);
     let mut last = u64::MAX;
     for (threshold, plane) in [("64", 6), ("100", 6), ("256", 8)] {
         let tif = dir.path().join(format!("out-{threshold}.tif"));
@@ -535,7 +536,8 @@ fn table_prints_both_tables_with_a_row_per_pass() {
     let input = sample("jacksboro_fault.tif");
     let ezw = dir.path().join("fault.ezw");
     let info = {
-        stdout(&["encode", s(&input), "-o", s(&ezw)]);
+        // The 5/3, as `table` codes it (the zerotree mesher's stream).
+        stdout(&["encode", s(&input), "-o", s(&ezw), "--wavelet", "53"]);
         json(&["info", s(&ezw), "--json"])
     };
     let passes = info["passes"].as_array().unwrap().len();

@@ -534,7 +534,7 @@ fn bands_derivable(header: &Header) -> bool {
 /// `norms`.
 fn bands_from_norms((wavelet, rule): (Wavelet, ShiftRule), norms: Vec<f64>) -> Vec<(u8, f64)> {
     match wavelet {
-        Wavelet::Int53 => wavelet::plane_shifts(&norms, rule)
+        Wavelet::Int53 | Wavelet::Int1311 => wavelet::plane_shifts(&norms, rule)
             .into_iter()
             .map(|shift| (shift.min(u8::MAX.into()) as u8, 1.0))
             .collect(),
@@ -578,7 +578,7 @@ fn read_bands(r: &mut Reader, wavelet: Wavelet, levels: u8) -> Result<Vec<(u8, f
     let mut bands = Vec::with_capacity(count);
     for _ in 0..count {
         let (shift, scale) = match wavelet {
-            Wavelet::Int53 => (r.u8()?, 1.0),
+            Wavelet::Int53 | Wavelet::Int1311 => (r.u8()?, 1.0),
             Wavelet::Cdf97 => (0, scale_from_u16(r.u16()?)),
         };
         if shift as u32 > MAX_PLANE || !(scale.is_finite() && scale > 0.0) {

@@ -82,8 +82,8 @@ mod wavelet;
 pub use container::{Header, Mode};
 pub use error::CodecError;
 pub use pipeline::{
-    decode, decode_window, decode_windows, encode, Damage, DecodeOptions, Decoded, EncodeOptions,
-    Encoded, Limits, Quality,
+    decode, decode_window, decode_windows, encode, wavelet_sample, Damage, DecodeOptions, Decoded,
+    EncodeOptions, Encoded, Limits, Quality,
 };
 pub use raster::{geokey, Georef, Metadata, MetadataItem, Raster, SampleType, Samples};
 pub use significance::SignificanceMap;

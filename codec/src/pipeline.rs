@@ -13,4 +13,4 @@ pub use decode::{decode, decode_window, decode_windows, Damage, Decoded};
 pub(crate) use encode::SHIFT_RULE;
 pub use encode::{encode, Encoded};
 pub(crate) use encode::{encode_stream, plan_stream};
-pub use options::{DecodeOptions, EncodeOptions, Limits, Quality};
+pub use options::{wavelet_sample, DecodeOptions, EncodeOptions, Limits, Quality};

@@ -24,7 +24,9 @@ mod prepare;
 mod samples;
 mod voids;
 
-pub(crate) use prepare::{prepare_53, prepare_97, Prepared, VoidCoefficients};
+pub(crate) use prepare::{
+    cheaper_reversible, prepare_97, prepare_integer, Prepared, VoidCoefficients,
+};
 pub(crate) use samples::{
     integer_samples, rescale_97, sample_bits, samples_from_bits, to_samples, whole_offset,
 };

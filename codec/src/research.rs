@@ -5,7 +5,7 @@ use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;
 use crate::pipeline::SHIFT_RULE;
-use crate::quantize::{prepare_53, prepare_97, VoidCoefficients};
+use crate::quantize::{prepare_97, prepare_integer, VoidCoefficients};
 use crate::raster::Raster;
 use crate::wavelet::{self, ShiftRule, Wavelet};
 
@@ -54,7 +54,10 @@ fn complete_coefficients(
     let norms = wavelet::coding_norms(wavelet, width, height, levels);
     let mask = raster.valid_mask();
     let prepared = match wavelet {
-        Wavelet::Int53 => prepare_53(raster, &mask, Quality::Lossless, &norms, (voids, rule))?,
+        Wavelet::Int53 | Wavelet::Int1311 => {
+            let kind = (wavelet, Quality::Lossless);
+            prepare_integer(raster, &mask, kind, &norms, (voids, rule))?
+        }
         Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, voids),
     };
     let subbands = wavelet::subbands(width, height, levels);

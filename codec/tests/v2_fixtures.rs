@@ -7,7 +7,7 @@
 //! N bytes. The files are 32 × 24 synthetic terrain (a sine relief with noise).
 
 use wavemesh_codec::format::Coder;
-use wavemesh_codec::{decode, DecodeOptions, Mode, Samples};
+use wavemesh_codec::{decode, DecodeOptions, Mode, Samples, Wavelet};
 
 mod support;
 
@@ -240,4 +240,25 @@ fn code_block_files_decode_to_their_recorded_samples() {
             "{name} at {budget:?}"
         );
     }
+}
+
+/// A 13/11 file (wavelet code 3, first written by this stop's encoder): the 120 × 90
+/// terrain of the code-block fixtures, lossless in one stream, whole and at 1500 bytes.
+#[test]
+fn a_13_11_file_decodes_to_its_recorded_samples() {
+    let file = fixture("int1311_i16_lossless.ezw");
+    let whole = decode(&file, &DecodeOptions::default()).unwrap();
+    assert_eq!(whole.header.wavelet, Wavelet::Int1311);
+    assert!(whole.complete);
+    assert_eq!(
+        raw(&whole.raster.samples),
+        fixture("tiled_i16_lossless.decoded")
+    );
+    let options = DecodeOptions::default().with_max_bytes(Some(1500));
+    let prefix = decode(&file, &options).unwrap();
+    assert!(!prefix.complete);
+    assert_eq!(
+        raw(&prefix.raster.samples),
+        fixture("int1311_i16_lossless.prefix1500.decoded")
+    );
 }

@@ -67,11 +67,12 @@ pub fn encode_options(
     };
     let mut options = EncodeOptions::new(quality, budget);
     match wavelet {
-        Some("97") => options.wavelet = Wavelet::Cdf97,
-        Some("53") => options.wavelet = Wavelet::Int53,
+        Some("97") => options = options.with_wavelet(Wavelet::Cdf97),
+        Some("53") => options = options.with_wavelet(Wavelet::Int53),
+        Some("1311") => options = options.with_wavelet(Wavelet::Int1311),
         Some(other) => {
             return Err(PyValueError::new_err(format!(
-                "wavelet must be '97' or '53', got {other:?}"
+                "wavelet must be '97', '53' or '1311', got {other:?}"
             )))
         }
         None => {}

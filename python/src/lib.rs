@@ -25,6 +25,8 @@ fn _wavemesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(meshing::table, m)?)?;
     m.add_function(wrap_pyfunction!(tile_encode::tile_grid, m)?)?;
     m.add_function(wrap_pyfunction!(tile_encode::encode_tile, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::wavelet_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::settled_wavelet, m)?)?;
     m.add_function(wrap_pyfunction!(tile_encode::write_tiled, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::tiled_plan, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::decode_tile, m)?)?;

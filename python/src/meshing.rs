@@ -12,7 +12,7 @@ use wavemesh::lod::{self, build_mesh, decoded_plane, plane_of_threshold, Surface
 use wavemesh::mesh::cells::SplitRule;
 use wavemesh::mesh::export::{placed_mesh, Placement};
 use wavemesh::mesh::MeshTarget;
-use wavemesh_codec::{encode as encode_raster, Decoded, EncodeOptions, Quality, Raster, Wavelet};
+use wavemesh_codec::{encode as encode_raster, Decoded, EncodeOptions, Raster, Wavelet};
 
 use crate::coding::{decode_prefix, limits, raster_with, read_options, DecodeRequest};
 use crate::errors::{codec_error, dem_error, CodecError};
@@ -185,12 +185,12 @@ fn table_rows(thresholds: Option<Vec<f64>>, bpp: Option<Vec<f64>>) -> PyResult<T
 /// The encoder's options for a table: one lossless 5/3 stream, or a 9/7 stream cut at
 /// the largest of the rows' rates.
 fn table_encoding(samples: usize, wavelet: &str, rows: &TableRows) -> PyResult<EncodeOptions> {
-    let mut options = EncodeOptions::new(Quality::Lossless, None).single_stream();
+    let mut options = EncodeOptions::zerotree_mesh();
     match (wavelet, rows) {
         ("53", _) => Ok(options),
         ("97", TableRows::BitRates(rates)) => {
             let top = rates.iter().copied().fold(0.0, f64::max);
-            options.wavelet = Wavelet::Cdf97;
+            options = options.with_wavelet(Wavelet::Cdf97);
             options.budget_bytes = Some((top * samples as f64 / 8.0).ceil() as u64);
             Ok(options)
         }

@@ -139,7 +139,8 @@ pub fn tile_grid(
 }
 
 /// Encodes the samples one tile of a `raster_width × raster_height` raster codes (the
-/// tile and its overlap; the quality keywords are those of the whole raster's `encode`; a
+/// tile and its overlap; the quality keywords are those of the whole raster's `encode`,
+/// with `wavelet` as [`settled_wavelet`] settles it for the whole raster; a
 /// `bpp` budget caps the tile at what the single-machine encoder first codes it to, or at
 /// `cap` bytes when given): `(stream, summary)`, the summary opaque values for
 /// [`write_tiled`].
@@ -174,6 +175,43 @@ pub fn encode_tile<'py>(
         .map_err(codec_error)?;
     let bytes = PyBytes::new(py, &tile.bytes);
     Ok((bytes, summary_values(tile)))
+}
+
+/// The window `(x, y, width, height)` at the centre of a `width × height` raster on
+/// which `encode` settles the reversible wavelet (`settled_wavelet`).
+#[pyfunction]
+pub fn wavelet_sample(width: usize, height: usize) -> (usize, usize, usize, usize) {
+    let w = wavemesh_codec::wavelet_sample(width, height);
+    (w.x, w.y, w.width, w.height)
+}
+
+/// The wavelet (`"97"`, `"53"` or `"1311"`) `encode` codes a `raster_width ×
+/// raster_height` raster with, given the samples of its `wavelet_sample` window and the
+/// raster's keywords: what every tile of a file coded task by task must share.
+#[pyfunction]
+#[pyo3(signature = (array, *, raster_width, raster_height, nodata=None, bpp=None,
+    max_error=None, precision=None, wavelet=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn settled_wavelet(
+    py: Python<'_>,
+    array: &Bound<'_, PyAny>,
+    raster_width: usize,
+    raster_height: usize,
+    nodata: Option<f64>,
+    bpp: Option<f64>,
+    max_error: Option<f64>,
+    precision: Option<f64>,
+    wavelet: Option<&str>,
+) -> PyResult<&'static str> {
+    let centre = raster_with(array, nodata, None, None, None)?;
+    let samples = (raster_width as u64).saturating_mul(raster_height as u64);
+    let options = encode_options(samples, bpp, max_error, precision, wavelet)?;
+    let settled = py.detach(|| options.wavelet_chosen_for(&centre));
+    Ok(match settled.wavelet {
+        Wavelet::Cdf97 => "97",
+        Wavelet::Int53 => "53",
+        Wavelet::Int1311 => "1311",
+    })
 }
 
 /// The tiles `write_tiled` receives: `(stream, summary)` per tile, in grid order.

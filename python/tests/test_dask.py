@@ -174,10 +174,18 @@ def test_native_tile_functions_assemble_the_encode_and_refuse_what_does_not_fit(
 
     dem = terrain(np.int16, (100, 100))
     assert _wavemesh.tile_grid(100, 100, 50) == (50, 50, 2)
+    # The wavelet is settled on the raster's centre, as encode settles it.
+    x, y, w, h = _wavemesh.wavelet_sample(100, 100)
+    assert (x, y, w, h) == (0, 0, 100, 100)
+    wavelet = _wavemesh.settled_wavelet(dem, raster_width=100, raster_height=100)
+    assert wavelet in ("53", "1311")
     # Each tile's stream codes the tile and two samples around it, within the raster.
     tiles = [
         _wavemesh.encode_tile(
-            dem[max(y - 2, 0) : y + 52, max(x - 2, 0) : x + 52], raster_width=100, raster_height=100
+            dem[max(y - 2, 0) : y + 52, max(x - 2, 0) : x + 52],
+            raster_width=100,
+            raster_height=100,
+            wavelet=wavelet,
         )
         for y in (0, 50)
         for x in (0, 50)

@@ -2,8 +2,8 @@
 
 A DEM (a 2-D numpy array of uint8, uint16, int16, int32 or float32, or a GeoTIFF, PNG,
 SRTM ``.hgt`` or ESRI ``.asc`` file) goes in, an embedded ``.ezw`` stream comes out: a
-lifting wavelet transform (integer 5/3 for lossless and error-bounded coding, CDF 9/7
-for rate-driven coding) feeding an EZW zerotree coder with context-modelled arithmetic
+lifting wavelet transform (integer 13/11 or 5/3 for lossless and error-bounded coding,
+CDF 9/7 for rate-driven coding) feeding an EZW zerotree coder with context-modelled arithmetic
 coding. Any prefix of the bytes decodes, so one file serves every bit rate, and the
 decoder's zerotree gives a crack-free triangle mesh at any threshold, triangle budget or
 height tolerance.
@@ -211,9 +211,11 @@ def encode(
     """Encodes a 2-D array into ``.ezw`` bytes.
 
     Lossless (bit-exact, floats included) by default; ``bpp`` cuts the stream at that
-    many bits per sample (lossy 9/7 unless ``wavelet="53"``); ``max_error`` keeps every
-    valid sample within that many data units; ``precision`` quantises floats to that
-    step. ``wavelet`` is ``"97"`` or ``"53"``. Voids: ``nodata``, NaN (floats) and a
+    many bits per sample (lossy 9/7 unless ``wavelet`` is ``"53"`` or ``"1311"``);
+    ``max_error`` keeps every valid sample within that many data units; ``precision``
+    quantises floats to that step. ``wavelet`` is ``"97"``, ``"53"`` or ``"1311"``
+    (default: 9/7 with ``bpp``, else the reversible 13/11 or 5/3, whichever the array's
+    centre codes smaller). Voids: ``nodata``, NaN (floats) and a
     ``numpy.ma`` array's mask (filled with ``nodata``, else NaN or the type's extreme).
 
     ``transform`` is an ``Affine`` or a GDAL geotransform (6 numbers); ``crs`` an EPSG

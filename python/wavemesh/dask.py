@@ -197,6 +197,13 @@ def to_ezw(
         )
         wavemesh._write_atomic(path, data)
         return len(data)
+    # Every tile codes with the wavelet the single-machine encoder settles on the
+    # raster's centre.
+    x, y, w, h = _wavemesh.wavelet_sample(width, height)
+    centre = np.asarray(array[y : y + h, x : x + w].compute())
+    quality["wavelet"] = _wavemesh.settled_wavelet(
+        centre, raster_width=width, raster_height=height, nodata=nodata, **quality
+    )
     tile_width, tile_height, overlap = grid
     return _wavemesh.write_tiled(
         os.fspath(path),

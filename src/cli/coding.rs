@@ -344,7 +344,7 @@ pub(super) fn encode_options(args: &EncodeArgs, samples: u64) -> Result<EncodeOp
     };
     let mut options = EncodeOptions::new(quality, budget);
     if let Some(w) = args.wavelet {
-        options.wavelet = w.into();
+        options = options.with_wavelet(w.into());
     }
     if options.wavelet == wavemesh_codec::Wavelet::Cdf97 && budget.is_none() {
         return Err(CliError::Usage(

@@ -192,13 +192,13 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
     let samples = (raster.width * raster.height) as f64;
     let mut rows = Vec::new();
 
-    // Lossless 5/3.
+    // Lossless (13/11).
     let (lossless, seconds) = encode_or_fail(
         &raster,
         &EncodeOptions::new(Quality::Lossless, None).single_stream(),
     )?;
     write_output(&args.out_dir.join("lossless.ezw"), &lossless.bytes)?;
-    let mut row = decode_row(&raster, &lossless, "5/3 lossless", None, "all".into())?;
+    let mut row = decode_row(&raster, &lossless, "13/11 lossless", None, "all".into())?;
     row.seconds += seconds;
     if !row.exact {
         return Err(CliError::Usage(
@@ -212,7 +212,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         rows.push(decode_row(
             &raster,
             &lossless,
-            "5/3 lossless",
+            "13/11 lossless",
             Some(bytes),
             format!("prefix {rate} bpp"),
         )?);
@@ -220,7 +220,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
 
     // One 9/7 stream at 2 bpp, decoded at every rate.
     let mut options = EncodeOptions::new(Quality::Lossless, Some((2.0 * samples / 8.0) as u64));
-    options.wavelet = Wavelet::Cdf97;
+    options = options.with_wavelet(Wavelet::Cdf97);
     let (lossy, _) = encode_or_fail(&raster, &options)?;
     write_output(&args.out_dir.join("lossy-2bpp.ezw"), &lossy.bytes)?;
     for &rate in &rates {
@@ -234,7 +234,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         )?);
     }
 
-    // Error-bounded 5/3 streams.
+    // Error-bounded streams (13/11, or a cut 9/7 with corrections when smaller).
     for e in [0.5, 1.0, 2.0] {
         let (bounded, seconds) =
             encode_or_fail(&raster, &EncodeOptions::new(Quality::MaxError(e), None))?;
@@ -245,7 +245,7 @@ pub fn run(args: &DemoArgs) -> Result<(), CliError> {
         let mut row = decode_row(
             &raster,
             &bounded,
-            &format!("5/3 --max-error {e}"),
+            &format!("--max-error {e}"),
             None,
             "all".into(),
         )?;

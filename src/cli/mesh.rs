@@ -530,7 +530,10 @@ pub fn mesh(args: &MeshArgs) -> Result<(), CliError> {
         }
         None => None,
     };
-    let options = EncodeOptions::new(Quality::Lossless, budget).single_stream();
+    let options = match budget {
+        Some(_) => EncodeOptions::new(Quality::Lossless, budget).single_stream(),
+        None => EncodeOptions::zerotree_mesh(),
+    };
     let (encoded, encode_seconds, _) =
         with_codec_progress("encoding", Workload::of(&raster), || {
             timed(|| encode(&raster, &options))
@@ -655,7 +658,7 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
         }
         (None, None) => TableRows::AllPasses,
     };
-    let mut options = EncodeOptions::new(Quality::Lossless, None).single_stream();
+    let mut options = EncodeOptions::zerotree_mesh();
     if args.wavelet == WaveletArg::Cdf97 {
         let Some(top) = args
             .bpp
@@ -666,7 +669,7 @@ pub fn table(args: &TableArgs) -> Result<(), CliError> {
                 "--wavelet 97 is lossy: give the rows' rates with --bpp".into(),
             ));
         };
-        options.wavelet = args.wavelet.into();
+        options = options.with_wavelet(args.wavelet.into());
         options.budget_bytes = Some((top * raster.len() as f64 / 8.0).ceil() as u64);
     }
     let encoded = with_codec_progress("encoding", Workload::of(&raster), || {

@@ -69,6 +69,9 @@ pub enum WaveletArg {
     /// Integer 5/3 (lossless, max-error).
     #[value(name = "53")]
     Int53,
+    /// Integer 13/11 (lossless, max-error): the default for those.
+    #[value(name = "1311")]
+    Int1311,
 }
 
 impl From<WaveletArg> for Wavelet {
@@ -76,6 +79,7 @@ impl From<WaveletArg> for Wavelet {
         match w {
             WaveletArg::Cdf97 => Wavelet::Cdf97,
             WaveletArg::Int53 => Wavelet::Int53,
+            WaveletArg::Int1311 => Wavelet::Int1311,
         }
     }
 }

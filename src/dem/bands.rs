@@ -153,8 +153,8 @@ impl RowBands {
         self.band(window.width, rows, samples)
     }
 
-    /// Refuses a window outside the raster or over the limits.
-    fn check_window(&self, window: &Window) -> Result<(), DemError> {
+    /// Refuses a window outside the raster or over the limits (what reading it would).
+    pub fn check_window(&self, window: &Window) -> Result<(), DemError> {
         let (width, height) = (self.info.width, self.info.height);
         let inside = |start: usize, len: usize, side: usize| {
             len > 0 && start.checked_add(len).is_some_and(|end| end <= side)

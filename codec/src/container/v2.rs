@@ -108,7 +108,7 @@ fn write_stream_fields(body: &mut Vec<u8>, header: &Header) {
     if bands_listed(header) {
         for &(shift, scale) in &header.bands {
             match header.wavelet {
-                Wavelet::Int53 => body.push(shift),
+                Wavelet::Int53 | Wavelet::Int1311 => body.push(shift),
                 Wavelet::Cdf97 => body.extend_from_slice(&scale_to_u16(scale).to_le_bytes()),
             }
         }
@@ -143,7 +143,7 @@ fn write_mapping(body: &mut Vec<u8>, header: &Header) {
 /// The offset and the step the header stores (see [`write_mapping`]).
 fn mapping_pair(header: &Header) -> (f64, f64) {
     let step = match header.wavelet {
-        Wavelet::Int53 => header.mapping.step,
+        Wavelet::Int53 | Wavelet::Int1311 => header.mapping.step,
         Wavelet::Cdf97 => header.coefficient_step,
     };
     (header.mapping.offset, step)
@@ -477,7 +477,7 @@ fn read_mapping(
         (r.number()?, r.number()?)
     };
     let (step, coefficient_step) = match wavelet {
-        Wavelet::Int53 => (stored_step, 1.0),
+        Wavelet::Int53 | Wavelet::Int1311 => (stored_step, 1.0),
         Wavelet::Cdf97 => (1.0, stored_step),
     };
     Ok((

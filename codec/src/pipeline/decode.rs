@@ -343,7 +343,7 @@ fn reconstruction(
     let shifts: Vec<u32> = header.bands.iter().map(|&(s, _)| s as u32).collect();
     let layout = CoefficientLayout::new(width, height, &subbands, &shifts);
     let narrow = header.sample_type.bytes() <= 2
-        && header.wavelet == Wavelet::Int53
+        && header.wavelet.is_reversible()
         && whole_offset(header.mapping)
         && !options.significance_map;
     if narrow {
@@ -526,7 +526,8 @@ fn narrow_samples<const ESCAPES: bool>(
     let shift = i32::try_from((centre - header.mapping.offset) as i64).ok()?;
     let (width, height) = (header.width as usize, header.height as usize);
     let levels = header.levels as u32;
-    let values = narrow_inverse_53(decoder.integer_coefficients(), width, height, levels, shift)?;
+    let coefficients = decoder.integer_coefficients();
+    let values = narrow_inverse(header.wavelet, coefficients, (width, height, levels), shift)?;
     let mapping = ValueMapping {
         offset: centre,
         step: 1.0,
@@ -539,19 +540,19 @@ fn narrow_samples<const ESCAPES: bool>(
     })
 }
 
-/// The 5/3 inverse of `coefficients` shifted down by `shift`, in `i16`
-/// ([`wavelet::inverse_53_i16`]; the escaped coefficients and the values that do not fit
-/// are kept beside). Shifting the LL band shifts every output of the integer 5/3 by as
-/// much, exactly (each lifting step adds to one band the floor of a sum of the other
-/// band's values, which the shift leaves alone or shifts by as much, as in JPEG 2000's
-/// DC level shift), so the samples are those of [`wavelet::inverse_53`] minus `shift`.
-/// A sample that still does not fit is saturated, as its type's range clamps it later.
-/// `None` when too many values do not fit.
-fn narrow_inverse_53<const ESCAPES: bool>(
+/// The inverse of the reversible `wavelet` of `coefficients` (a `width × height`
+/// transform of `levels` levels) shifted down by `shift`, in `i16`
+/// ([`wavelet::inverse_integer_i16`]; the escaped coefficients and the values that do
+/// not fit are kept beside). Shifting the LL band shifts every output of the integer
+/// transforms by as much, exactly (each lifting step adds to one band the floor of a sum
+/// of the other band's values whose weights sum to 0 or 1, which the shift leaves alone
+/// or shifts by as much, as in JPEG 2000's DC level shift), so the samples are those of
+/// the `i32` inverse minus `shift`. A sample that still does not fit is saturated, as its
+/// type's range clamps it later. `None` when too many values do not fit.
+fn narrow_inverse<const ESCAPES: bool>(
+    wavelet: Wavelet,
     mut coefficients: Narrow<ESCAPES>,
-    width: usize,
-    height: usize,
-    levels: u32,
+    (width, height, levels): (usize, usize, u32),
     shift: i32,
 ) -> Option<Vec<i16>> {
     let ll = (region_side(width, levels), region_side(height, levels));
@@ -559,7 +560,7 @@ fn narrow_inverse_53<const ESCAPES: bool>(
         coefficients.set(i, coefficients.at(i).wrapping_sub(shift));
     }
     let (mut values, _, mut spilled) = coefficients.into_parts();
-    if !wavelet::inverse_53_i16(&mut values, &mut spilled, width, height, levels) {
+    if !wavelet::inverse_integer_i16(wavelet, &mut values, &mut spilled, width, height, levels) {
         return None;
     }
     for (i, v) in spilled {
@@ -597,7 +598,7 @@ impl Coefficients {
     /// `len` zeros.
     pub(crate) fn zeros(wavelet: Wavelet, len: usize) -> Coefficients {
         match wavelet {
-            Wavelet::Int53 => Coefficients::Integer(vec![0; len]),
+            Wavelet::Int53 | Wavelet::Int1311 => Coefficients::Integer(vec![0; len]),
             Wavelet::Cdf97 => Coefficients::Real(vec![0.0; len]),
         }
     }
@@ -605,7 +606,9 @@ impl Coefficients {
     /// What `decoder` decoded, as `wavelet` inverts them.
     pub(crate) fn of(decoder: Decoder, wavelet: Wavelet) -> Coefficients {
         match wavelet {
-            Wavelet::Int53 => Coefficients::Integer(decoder.integer_coefficients()),
+            Wavelet::Int53 | Wavelet::Int1311 => {
+                Coefficients::Integer(decoder.integer_coefficients())
+            }
             Wavelet::Cdf97 => Coefficients::Real(decoder.into_real_coefficients()),
         }
     }
@@ -631,7 +634,7 @@ pub(crate) fn reconstruct(
     };
     let samples = match coefficients {
         Coefficients::Integer(mut coefficients) => {
-            wavelet::inverse_53(&mut coefficients, width, height, levels);
+            wavelet::inverse_integer(header.wavelet, &mut coefficients, width, height, levels);
             integer_samples(wide_type, coefficients, mapping, mask, header.nodata)
         }
         Coefficients::Real(mut data) => {

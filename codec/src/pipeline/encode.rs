@@ -7,7 +7,7 @@ use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, EncodedPayload};
 use crate::mask::encode_mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{self, prepare_53, prepare_97, Prepared, VoidCoefficients};
+use crate::quantize::{self, prepare_97, prepare_integer, Prepared, VoidCoefficients};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::encode_residuals;
 use crate::tiles::TileGrid;
@@ -56,7 +56,8 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
         let side = side as usize;
         if let Some(grid) = crate::tiles::unit_grid(raster.width, raster.height, max_tile, side) {
             check_dimensions(raster)?;
-            return crate::tiles::encode_blocked(raster, options, &grid, side);
+            let options = options.wavelet_chosen_for(raster);
+            return crate::tiles::encode_blocked(raster, &options, &grid, side);
         }
     }
     let grid = options
@@ -64,12 +65,15 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
         .and_then(|t| TileGrid::balanced(raster.width, raster.height, t as usize));
     if let Some(grid) = grid {
         check_dimensions(raster)?;
-        return crate::tiles::encode(raster, options, &grid);
+        let options = options.wavelet_chosen_for(raster);
+        return crate::tiles::encode(raster, &options, &grid);
     }
+    check_dimensions(raster)?;
+    let options = &options.wavelet_chosen_for(raster);
     let (near_lossless, _) = encode_stream(raster, options)?;
     match (options.wavelet, options.quality, options.budget_bytes) {
-        (Wavelet::Int53, Quality::MaxError(e), None)
-            if near_lossless.header.mode == Mode::MaxError =>
+        (wavelet, Quality::MaxError(e), None)
+            if wavelet.is_reversible() && near_lossless.header.mode == Mode::MaxError =>
         {
             match encode_with_corrections(raster, options.levels, e, near_lossless.bytes.len())? {
                 Some(corrected) if corrected.bytes.len() < near_lossless.bytes.len() => {
@@ -133,10 +137,10 @@ fn prepare(
         quantize::check_finite(values, mask, raster.width)?;
     }
     match options.wavelet {
-        Wavelet::Int53 => prepare_53(
+        Wavelet::Int53 | Wavelet::Int1311 => prepare_integer(
             raster,
             mask,
-            options.quality,
+            (options.wavelet, options.quality),
             norms,
             (VoidCoefficients::Zeroed, SHIFT_RULE),
         ),
@@ -332,7 +336,7 @@ fn stream_header(
         // What `ezw::encode` codes with.
         coder: ezw::Coder::default(),
         shift_rule: match wavelet {
-            Wavelet::Int53 => SHIFT_RULE,
+            Wavelet::Int53 | Wavelet::Int1311 => SHIFT_RULE,
             Wavelet::Cdf97 => ShiftRule::Rounded,
         },
         bands: prepared

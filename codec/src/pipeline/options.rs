@@ -1,17 +1,36 @@
 //! What a caller asks of an encode or a decode.
 
+use crate::quantize;
+use crate::raster::Raster;
+use crate::tiles::Window;
 use crate::tiles::DEFAULT_TILE;
-use crate::wavelet::Wavelet;
+use crate::wavelet::{self, Wavelet};
+
+/// Largest side of the centre [`EncodeOptions::wavelet_chosen_for`] transforms.
+const CHOICE_SIDE: usize = 512;
+
+/// The window at the centre of a `width × height` raster, at most 512 samples a side,
+/// on which [`EncodeOptions::wavelet_chosen_for`] chooses the reversible wavelet.
+pub fn wavelet_sample(width: usize, height: usize) -> Window {
+    let (w, h) = (width.min(CHOICE_SIDE), height.min(CHOICE_SIDE));
+    Window {
+        x: (width - w) / 2,
+        y: (height - h) / 2,
+        width: w,
+        height: h,
+    }
+}
 
 /// What the encoder should achieve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum Quality {
-    /// Bit-exact (5/3) — or, with 9/7, as fine as the coefficient quantiser allows.
+    /// Bit-exact (a reversible wavelet) — or, with 9/7, as fine as the coefficient
+    /// quantiser allows.
     Lossless,
-    /// Every valid sample within this many data units (5/3).
+    /// Every valid sample within this many data units (a reversible wavelet).
     MaxError(f64),
-    /// Floats quantised to this step (error ≤ step / 2) (5/3).
+    /// Floats quantised to this step (error ≤ step / 2) (a reversible wavelet).
     Precision(f64),
 }
 
@@ -29,6 +48,11 @@ pub enum Quality {
 pub struct EncodeOptions {
     /// The transform; see [`EncodeOptions::new`] for the defaults.
     pub wavelet: Wavelet,
+    /// Whether the encoder may replace the reversible `wavelet` by the other one (5/3,
+    /// 13/11) when the raster's coefficients come out smaller with it (see
+    /// [`EncodeOptions::wavelet_chosen_for`]): set by [`EncodeOptions::new`] for
+    /// lossless and error-bounded coding, cleared by [`EncodeOptions::with_wavelet`].
+    pub adaptive_wavelet: bool,
     /// Decomposition levels (`None`: until the coarsest band is at most 8 samples wide).
     pub levels: Option<u32>,
     /// Target quality of the complete stream.
@@ -51,15 +75,16 @@ pub struct EncodeOptions {
 }
 
 impl EncodeOptions {
-    /// The defaults: 9/7 when only a byte budget is given, 5/3 for lossless and
+    /// The defaults: 9/7 when only a byte budget is given, 13/11 for lossless and
     /// error-bounded coding; tiles of [`DEFAULT_TILE`] a side; every core.
     pub fn new(quality: Quality, budget_bytes: Option<u64>) -> EncodeOptions {
         let wavelet = match (quality, budget_bytes) {
             (Quality::Lossless, Some(_)) => Wavelet::Cdf97,
-            _ => Wavelet::Int53,
+            _ => Wavelet::Int1311,
         };
         EncodeOptions {
             wavelet,
+            adaptive_wavelet: wavelet.is_reversible(),
             levels: None,
             quality,
             budget_bytes,
@@ -69,12 +94,12 @@ impl EncodeOptions {
         }
     }
 
-    /// Bit-exact coding (5/3), with the defaults of [`EncodeOptions::new`].
+    /// Bit-exact coding (13/11), with the defaults of [`EncodeOptions::new`].
     pub fn lossless() -> EncodeOptions {
         EncodeOptions::new(Quality::Lossless, None)
     }
 
-    /// Every valid sample within `error` data units (5/3), with the defaults of
+    /// Every valid sample within `error` data units (13/11), with the defaults of
     /// [`EncodeOptions::new`].
     pub fn max_error(error: f64) -> EncodeOptions {
         EncodeOptions::new(Quality::MaxError(error), None)
@@ -90,6 +115,47 @@ impl EncodeOptions {
     /// significance map, and so the zerotree mesher, needs.
     pub fn single_stream(self) -> EncodeOptions {
         self.with_tile_size(None)
+    }
+
+    /// These options with `wavelet`, kept whatever the raster (no
+    /// [`adaptive_wavelet`](Self::adaptive_wavelet)).
+    #[must_use]
+    pub fn with_wavelet(mut self, wavelet: Wavelet) -> EncodeOptions {
+        self.wavelet = wavelet;
+        self.adaptive_wavelet = false;
+        self
+    }
+
+    /// These options with the wavelet settled for `raster`: with
+    /// [`adaptive_wavelet`](Self::adaptive_wavelet), the reversible one (5/3 or 13/11)
+    /// whose transform of the raster's centre ([`wavelet_sample`]; quantised and voids
+    /// filled as coded) has the fewest coefficient bits once the coefficients reaching no
+    /// valid sample are zeroed. Smooth terrain takes the 13/11; resampled or ragged data
+    /// (jagged at the sample scale) the 5/3, whose shorter filters ring less. `raster`
+    /// may also be just that centre (what a streaming encoder reads of a large raster):
+    /// the choice is the same. Samples the encoder refuses (infinities, a range too wide)
+    /// leave the wavelet as it is, for the encode to name them.
+    pub fn wavelet_chosen_for(&self, raster: &Raster) -> EncodeOptions {
+        if !(self.adaptive_wavelet && self.wavelet.is_reversible()) {
+            return self.clone();
+        }
+        let w = wavelet_sample(raster.width, raster.height);
+        let centre = raster.crop(w.x, w.y, w.width, w.height);
+        let (width, height) = (w.width, w.height);
+        let levels = self
+            .levels
+            .unwrap_or(u32::MAX)
+            .min(wavelet::default_levels(width, height));
+        let wavelet = quantize::cheaper_reversible(&centre, self.quality, levels);
+        self.clone().with_wavelet(wavelet.unwrap_or(self.wavelet))
+    }
+
+    /// One lossless 5/3 stream: the significance map the zerotree mesher's partition is
+    /// made from, as its measured figures (README) were.
+    pub fn zerotree_mesh() -> EncodeOptions {
+        EncodeOptions::lossless()
+            .with_wavelet(Wavelet::Int53)
+            .single_stream()
     }
 }
 
@@ -118,7 +184,6 @@ macro_rules! setters {
 }
 
 setters!(EncodeOptions {
-    with_wavelet => wavelet: Wavelet,
     with_levels => levels: Option<u32>,
     with_quality => quality: Quality,
     with_budget_bytes => budget_bytes: Option<u64>,

@@ -49,33 +49,27 @@ pub(crate) enum VoidCoefficients {
     Filled,
 }
 
-/// The 5/3 path: samples to the integer plane `quality` asks for, voids filled,
-/// transformed, the subbands shifted by `rule`.
-pub(crate) fn prepare_53(
+/// The reversible path (5/3 or 13/11, `wavelet`): samples to the integer plane `quality`
+/// asks for, voids filled, transformed, the subbands shifted by `rule`.
+pub(crate) fn prepare_integer(
     raster: &Raster,
     mask: &[bool],
-    quality: Quality,
+    (wavelet, quality): (Wavelet, Quality),
     norms: &[f64],
     (voids, rule): (VoidCoefficients, ShiftRule),
 ) -> Result<Prepared, CodecError> {
     let (width, height) = (raster.width, raster.height);
     let (plane, mode, max_error) = integer_plane_for(raster, mask, quality)?;
     let IntegerPlane {
-        mut values,
+        values,
         mapping,
         residuals,
     } = plane;
-    if mask.iter().any(|&m| !m) {
-        let mut filled: Vec<f64> = values.iter().map(|&v| v as f64).collect();
-        fill_voids(&mut filled, width, height, mask);
-        for (v, f) in values.iter_mut().zip(filled) {
-            *v = f.round() as i32;
-        }
-    }
+    let mut values = filled(values, width, height, mask);
     let levels = level_count(norms.len());
-    wavelet::forward_53(&mut values, width, height, levels);
+    wavelet::forward_integer(wavelet, &mut values, width, height, levels);
     if voids == VoidCoefficients::Zeroed {
-        wavelet::zero_unreached(&mut values, width, height, levels, Wavelet::Int53, mask);
+        wavelet::zero_unreached(&mut values, width, height, levels, wavelet, mask);
     }
     // Shift each subband by its synthesis norm relative to the smallest, in whole planes.
     let shifts = wavelet::plane_shifts(norms, rule);
@@ -92,6 +86,50 @@ pub(crate) fn prepare_53(
         coefficient_step: 1.0,
         residuals,
     })
+}
+
+/// The reversible wavelet, 5/3 or 13/11, whose `levels`-level transform of `raster`'s
+/// integer plane for `quality` (voids filled) has the fewest coefficient bits (the sum
+/// of their bit lengths) once the coefficients reaching no valid sample are zeroed: a
+/// measure of what the coder spends that ranks the two as their coded sizes do
+/// (README, *The 13/11 wavelet*). The 13/11 on a tie; the 5/3 for planes wider than
+/// [`wavelet::MAX_EXACT_1311`], where the 13/11's sums would wrap.
+pub(crate) fn cheaper_reversible(
+    raster: &Raster,
+    quality: Quality,
+    levels: u32,
+) -> Result<Wavelet, CodecError> {
+    let mask = raster.valid_mask();
+    let (width, height) = (raster.width, raster.height);
+    let (IntegerPlane { values, .. }, _, _) = integer_plane_for(raster, &mask, quality)?;
+    let values = filled(values, width, height, &mask);
+    let widest = values.iter().map(|v| v.unsigned_abs()).max().unwrap_or(0);
+    if widest > wavelet::MAX_EXACT_1311.unsigned_abs() {
+        return Ok(Wavelet::Int53);
+    }
+    let bits = |wavelet: Wavelet| -> u64 {
+        let mut coefficients = values.clone();
+        wavelet::forward_integer(wavelet, &mut coefficients, width, height, levels);
+        wavelet::zero_unreached(&mut coefficients, width, height, levels, wavelet, &mask);
+        let bit_length = |c: &i32| u64::from(32 - c.unsigned_abs().leading_zeros());
+        coefficients.iter().map(bit_length).sum()
+    };
+    Ok(match bits(Wavelet::Int53) < bits(Wavelet::Int1311) {
+        true => Wavelet::Int53,
+        false => Wavelet::Int1311,
+    })
+}
+
+/// `values` with the samples `mask` says are voids filled smoothly (rounded).
+fn filled(mut values: Vec<i32>, width: usize, height: usize, mask: &[bool]) -> Vec<i32> {
+    if mask.iter().any(|&m| !m) {
+        let mut smooth: Vec<f64> = values.iter().map(|&v| v as f64).collect();
+        fill_voids(&mut smooth, width, height, mask);
+        for (v, f) in values.iter_mut().zip(smooth) {
+            *v = f.round() as i32;
+        }
+    }
+    values
 }
 
 /// The integer plane of `raster` for `quality`, with the mode and error bound of the

@@ -5,12 +5,13 @@
 //! The inverse transform is local: one level's inverse rebuilds sample `p` of a 1-D
 //! signal from the low-pass outputs `s[i]` with `|2i − p| ≤ reach_low` and the high-pass
 //! outputs `d[i]` with `|2i + 1 − p| ≤ reach_high` (5/3: 1 and 2, the supports of its
-//! 3- and 5-tap synthesis filters; 9/7: 3 and 4, of its 7 and 9 taps), and whole-sample
-//! symmetric extension mirrors an out-of-range position back inside that window. A
-//! level transforms rows then columns, so a coefficient's reach in the finer signal is
-//! the product of its row and column windows. Rounding (5/3) and `f32` stores (9/7) are
-//! done sample by sample, so a zeroed coefficient outside every valid sample's windows
-//! leaves every valid sample's reconstruction bit for bit the same.
+//! 3- and 5-tap synthesis filters; 13/11: 5 and 6, of its 11 and 13; 9/7: 3 and 4, of
+//! its 7 and 9), and whole-sample symmetric extension mirrors an out-of-range position
+//! back inside that window. A level transforms rows then columns, so a coefficient's
+//! reach in the finer signal is the product of its row and column windows. Rounding
+//! (integer wavelets) and `f32` stores (9/7) are done sample by sample, so a zeroed
+//! coefficient outside every valid sample's windows leaves every valid sample's
+//! reconstruction bit for bit the same.
 
 use super::{regions, Wavelet};
 
@@ -67,6 +68,7 @@ impl Reach {
     fn of(wavelet: Wavelet) -> Reach {
         match wavelet {
             Wavelet::Int53 => Reach { low: 1, high: 2 },
+            Wavelet::Int1311 => Reach { low: 5, high: 6 },
             Wavelet::Cdf97 => Reach { low: 3, high: 4 },
         }
     }
@@ -127,7 +129,7 @@ impl Reach {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wavelet::{forward_53, forward_97, inverse_53, inverse_97, max_levels};
+    use crate::wavelet::{forward_97, forward_integer, inverse_97, inverse_integer, max_levels};
 
     /// A small deterministic generator (xorshift) for the random cases.
     fn xorshift(state: &mut u64) -> u64 {
@@ -164,16 +166,17 @@ mod tests {
             let ints: Vec<i32> = (0..width * height)
                 .map(|_| (xorshift(&mut state) % 4001) as i32 - 2000)
                 .collect();
-            let mut whole = ints.clone();
-            forward_53(&mut whole, width, height, levels);
-            let mut zeroed = whole.clone();
-            zero_unreached(&mut zeroed, width, height, levels, Wavelet::Int53, &valid);
-            inverse_53(&mut zeroed, width, height, levels);
-            for i in (0..width * height).filter(|&i| valid[i]) {
-                assert_eq!(
-                    zeroed[i], ints[i],
-                    "5/3 case {case}: {width}x{height} L{levels} at {i}"
-                );
+            for wavelet in [Wavelet::Int53, Wavelet::Int1311] {
+                let mut zeroed = ints.clone();
+                forward_integer(wavelet, &mut zeroed, width, height, levels);
+                zero_unreached(&mut zeroed, width, height, levels, wavelet, &valid);
+                inverse_integer(wavelet, &mut zeroed, width, height, levels);
+                for i in (0..width * height).filter(|&i| valid[i]) {
+                    assert_eq!(
+                        zeroed[i], ints[i],
+                        "{wavelet:?} case {case}: {width}x{height} L{levels} at {i}"
+                    );
+                }
             }
             let floats: Vec<f32> = ints.iter().map(|&v| v as f32 * 0.37).collect();
             let mut whole = floats.clone();

@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 use wavemesh_codec::tiles::Window;
-use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Quality, Raster};
+use wavemesh_codec::{decode, encode, DecodeOptions, Decoded, EncodeOptions, Raster};
 
 use super::{TileMeshError, TileMeshOptions, TileTarget};
 use crate::lod::{decoded_plane, Surface};
@@ -135,7 +135,7 @@ impl TileMeshSummary {
 /// `raster` coded losslessly as one stream and decoded with its significance map: the
 /// heights and the partition the zerotree mesher takes.
 fn code_losslessly(raster: &Raster) -> Result<Decoded, TileMeshError> {
-    let options = EncodeOptions::new(Quality::Lossless, None).single_stream();
+    let options = EncodeOptions::zerotree_mesh();
     let encoded = encode(raster, &options).map_err(TileMeshError::Encode)?;
     let decode_options = DecodeOptions::default().with_significance_map(true);
     decode(&encoded.bytes, &decode_options).map_err(TileMeshError::Decode)

@@ -63,5 +63,6 @@ pub(super) fn reach(wavelet: Wavelet, levels: u32) -> usize {
     match wavelet {
         Wavelet::Cdf97 => 4 << levels,
         Wavelet::Int53 => 2 << levels,
+        Wavelet::Int1311 => 6 << levels,
     }
 }
