@@ -119,6 +119,9 @@ pub struct Header {
     pub residual_len: u32,
     /// Step of the max-error corrections (0: none).
     pub correction_step: f64,
+    /// Float residuals choose their length models by the exponent of their sample's
+    /// reconstruction (flag 16), not by `coder` (see `residual.rs`).
+    pub residuals_by_exponent: bool,
     /// Bytes of the ladder section, framed, as read from a file (writing recomputes it
     /// from `passes`).
     pub ladder_len: u32,
@@ -198,6 +201,7 @@ impl Header {
             mask_len: 0,
             residual_len: 0,
             correction_step: 0.0,
+            residuals_by_exponent: false,
             ladder_len: 0,
             passes: Vec::new(),
             georef: None,
@@ -1072,6 +1076,7 @@ mod tests {
             mask_len: 17,
             residual_len: 0,
             correction_step: 0.0,
+            residuals_by_exponent: false,
             ladder_len: 0,
             passes: vec![
                 PassRecord {
@@ -1267,6 +1272,17 @@ mod tests {
             assert!(listed_len > implied_len, "{sample_type:?}");
             assert_eq!(Header::parse(&bytes).unwrap().0.correction_step, step * 1.5);
         }
+    }
+
+    #[test]
+    fn the_residual_length_flag_round_trips() {
+        let mut h = sample_header();
+        (h.sample_type, h.residuals_by_exponent) = (SampleType::F32, true);
+        let (bytes, _) = assemble(&mut h, &[0], &[1, 2, 3], &[9, 9]);
+        assert!(Header::parse(&bytes).unwrap().0.residuals_by_exponent);
+        h.residuals_by_exponent = false;
+        let (bytes, _) = assemble(&mut h, &[0], &[1, 2, 3], &[9, 9]);
+        assert!(!Header::parse(&bytes).unwrap().0.residuals_by_exponent);
     }
 
     /// The 9/7 scales a decoder derives for `h`'s size.

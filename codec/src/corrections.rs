@@ -10,7 +10,7 @@ use crate::container::{self, Mode};
 use crate::error::CodecError;
 use crate::pipeline::{decode, encode_stream, DecodeOptions, EncodeOptions, Encoded};
 use crate::raster::{Raster, SampleType, Samples};
-use crate::residual::encode_residuals;
+use crate::residual::{encode_residuals, LengthContext};
 use crate::wavelet::Wavelet;
 
 /// The smallest corrected file below `limit` bytes, the 9/7 cut searched for it; `None`
@@ -117,7 +117,7 @@ fn corrected_file(
     let Some(corrections) = corrections(raster, &decoded.raster, e, step) else {
         return Ok(None);
     };
-    let correction_bytes = encode_residuals(&corrections, header.coder);
+    let correction_bytes = encode_residuals(&corrections, LengthContext::Coder(header.coder));
     header.correction_step = step;
     header.mode = Mode::MaxError;
     header.max_error = e;

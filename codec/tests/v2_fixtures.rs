@@ -123,6 +123,24 @@ fn new_files_say_coder_4_and_decode_exactly() {
     assert_ne!(new.bytes, file, "coder 4 makes other bytes");
 }
 
+/// A lossless float file of coder 4 written before flag 16 (commit ba84cf1: residual
+/// lengths modelled by the residual before), the samples of `f32_nan_lossless`, decodes
+/// to them; a new file of the same samples says flag 16 and decodes to them too.
+#[test]
+fn float_residuals_of_both_length_models_decode_exactly() {
+    let decoded = fixture("f32_nan_lossless.decoded");
+    let file = fixture("coder4_f32_nan_lossless.ezw");
+    let old = decode(&file, &DecodeOptions::default()).unwrap();
+    assert_eq!(old.header.coder, Coder::V4);
+    assert!(old.header.residual_len > 0 && !old.header.residuals_by_exponent);
+    assert_eq!(raw(&old.raster.samples), decoded);
+    let options = wavemesh_codec::EncodeOptions::new(wavemesh_codec::Quality::Lossless, None);
+    let new = wavemesh_codec::encode(&old.raster, &options).unwrap();
+    let redecoded = decode(&new.bytes, &DecodeOptions::default()).unwrap();
+    assert!(redecoded.header.residuals_by_exponent);
+    assert_eq!(raw(&redecoded.raster.samples), decoded);
+}
+
 /// Tiled files written before tiles overlapped (commit 0603092: no overlap field, flag 9
 /// clear), 120 × 90 synthetic terrain in 6 tiles of 40 × 45, decode to what that
 /// decoder made of them: lossless whole and at a 1500-byte budget, and a 9/7 file cut

@@ -68,6 +68,7 @@ pub(super) fn parse_fields(r: &mut Reader) -> Result<Header, CodecError> {
         mask_len,
         residual_len,
         correction_step,
+        residuals_by_exponent: false,
         ladder_len,
         passes: Vec::new(),
         georef,

@@ -32,7 +32,8 @@ mod flag {
     pub const COMPACT_TILES: u64 = 1 << 13;
     pub const LOWERED_SHIFTS: u64 = 1 << 14;
     pub const CODE_BLOCKS: u64 = 1 << 15;
-    pub const ALL: u64 = (1 << 16) - 1;
+    pub const RESIDUALS_BY_EXPONENT: u64 = 1 << 16;
+    pub const ALL: u64 = (1 << 17) - 1;
 }
 
 /// Bit of the sample-type/wavelet/mode byte that says the payload is coded with
@@ -271,6 +272,10 @@ fn flags(header: &Header) -> u64 {
             single && has_residual(header) && correction_step_implied(header),
             flag::CORRECTION_STEP_IMPLIED,
         ),
+        (
+            single && header.residuals_by_exponent,
+            flag::RESIDUALS_BY_EXPONENT,
+        ),
     ] {
         if set {
             flags |= bit;
@@ -406,6 +411,7 @@ fn read_stream_fields(
         mask_len,
         residual_len,
         correction_step,
+        residuals_by_exponent: flags & flag::RESIDUALS_BY_EXPONENT != 0,
         ..Header::whole_raster(
             size.0,
             size.1,
@@ -614,7 +620,8 @@ fn parse_tiled(
         | flag::RANGE_IN_LADDER
         | flag::CORRECTION_STEP_IMPLIED
         | flag::F32_MAPPING
-        | flag::LOWERED_SHIFTS;
+        | flag::LOWERED_SHIFTS
+        | flag::RESIDUALS_BY_EXPONENT;
     if flags & stream_only != 0 {
         return Err(CodecError::InvalidHeader(format!(
             "flags {flags:#x} of a tiled file"

@@ -15,7 +15,7 @@ use crate::quantize::{
     ValueMapping,
 };
 use crate::raster::{Raster, SampleType, Samples};
-use crate::residual::decode_residuals;
+use crate::residual::{decode_residuals, exponents, LengthContext};
 use crate::significance::SignificanceMap;
 use crate::tiles::{ByteSource, TiledLayout, Window};
 use crate::wavelet::{self, Wavelet};
@@ -721,25 +721,42 @@ pub(crate) fn apply_residual_section(
     match bytes {
         _ if header.residual_len == 0 => true,
         Some(bytes) if header.correction_step > 0.0 && sections.payload_check.complete => {
-            let mut corrections = decode_residuals(bytes, valid_count(), header.coder).into_iter();
+            let context = LengthContext::Coder(header.coder);
+            let mut corrections = decode_residuals(bytes, valid_count(), context).into_iter();
             apply_corrections(samples, mask, header.correction_step, &mut corrections);
             true
         }
         Some(bytes) if ezw_complete => match samples {
             Samples::F32(floats) => {
-                let mut residuals =
-                    decode_residuals(bytes, valid_count(), header.coder).into_iter();
-                for (i, value) in floats.iter_mut().enumerate() {
-                    if mask.is_none_or(|m| m[i]) {
-                        let r = residuals.next().unwrap_or(0);
-                        *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
-                    }
-                }
+                apply_float_residuals(header, bytes, floats, mask);
                 true
             }
             _ => false,
         },
         _ => false,
+    }
+}
+
+/// Adds the exact residuals of `bytes` to the valid `floats` (their reconstructions).
+fn apply_float_residuals(
+    header: &Header,
+    bytes: &[u8],
+    floats: &mut [f32],
+    mask: Option<&BitSlice<u64, Lsb0>>,
+) {
+    let valid = |i: usize| mask.is_none_or(|m| m[i]);
+    let valid_bits = floats.iter().enumerate().filter(|&(i, _)| valid(i));
+    let exponents = exponents(valid_bits.map(|(_, v)| v.to_bits()));
+    let context = match header.residuals_by_exponent {
+        true => LengthContext::Exponents(&exponents),
+        false => LengthContext::Coder(header.coder),
+    };
+    let mut residuals = decode_residuals(bytes, exponents.len(), context).into_iter();
+    for (i, value) in floats.iter_mut().enumerate() {
+        if valid(i) {
+            let r = residuals.next().unwrap_or(0);
+            *value = f32::from_bits(value.to_bits().wrapping_add(r as u32));
+        }
     }
 }
 

@@ -9,7 +9,7 @@ use crate::mask::encode_mask;
 use crate::progress::{self, Stage};
 use crate::quantize::{self, prepare_97, prepare_integer, Prepared, VoidCoefficients};
 use crate::raster::{Raster, SampleType, Samples};
-use crate::residual::encode_residuals;
+use crate::residual::{encode_residuals, exponents, LengthContext};
 use crate::tiles::TileGrid;
 use crate::wavelet::{self, ShiftRule, Wavelet};
 
@@ -240,11 +240,12 @@ pub(crate) fn plan_stream(
     let norms = wavelet::coding_norms(options.wavelet, width, height, levels);
     let prepared = prepare(raster, &mask, options, &norms)?;
     let mask_bytes = mask_section(&mask, width, has_voids);
-    let residual = residual_section(&prepared.residuals);
+    let residual = residual_section(raster, &mask, &prepared.residuals);
     let mut header = stream_header(raster, options.wavelet, levels, &prepared, &mask, has_voids);
     header.derived = container::DerivedMemo(container::DerivedBands::from_norms(&header, norms));
     header.mask_len = mask_bytes.len() as u32;
     header.residual_len = residual.len() as u32;
+    header.residuals_by_exponent = !residual.is_empty();
     Ok(StreamPlan {
         header,
         prepared,
@@ -280,13 +281,23 @@ fn assemble(
     (encoded, parts)
 }
 
-/// The coded exact float residuals: empty when there are none.
-fn residual_section(residuals: &[i32]) -> Vec<u8> {
+/// The coded exact float residuals of the valid samples of `raster`, their lengths
+/// modelled by the exponents of the samples' reconstructions: empty when there are none.
+fn residual_section(raster: &Raster, mask: &[bool], residuals: &[i32]) -> Vec<u8> {
+    let Samples::F32(values) = &raster.samples else {
+        return Vec::new();
+    };
     if residuals.is_empty() {
-        Vec::new()
-    } else {
-        encode_residuals(residuals, ezw::Coder::default())
+        return Vec::new();
     }
+    let valid = values.iter().zip(mask).filter(|&(_, &m)| m);
+    let reconstructed = valid
+        .zip(residuals)
+        .map(|((v, _), &r)| v.to_bits().wrapping_sub(r as u32));
+    encode_residuals(
+        residuals,
+        LengthContext::Exponents(&exponents(reconstructed)),
+    )
 }
 
 /// What a file of at most `budget` bytes leaves the payload: the budget less the
@@ -386,6 +397,7 @@ fn fit_to_budget(
     let total = budget.expect("only a budget cuts a stream");
     header.payload_truncated = true;
     sections.residual.clear();
+    header.residuals_by_exponent = false;
     header.mode = Mode::Lossy;
     header.max_error = f64::INFINITY;
     let full_len = sections.payload.len();

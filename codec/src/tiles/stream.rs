@@ -138,6 +138,7 @@ fn lay_out(
         header.mode = Mode::Lossy;
         header.max_error = f64::INFINITY;
         residual.clear();
+        header.residuals_by_exponent = false;
         // The cut header may be a byte or two longer than the whole one: a limit below
         // it keeps no payload (the caller's total check sees the excess).
         let fits =

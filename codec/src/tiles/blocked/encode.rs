@@ -201,6 +201,7 @@ impl EncodedUnit {
         let mut header = self.header.clone();
         if self.cut() {
             header.correction_step = 0.0;
+            header.residuals_by_exponent = false;
             header.mode = Mode::Lossy;
             header.max_error = f64::INFINITY;
         }
