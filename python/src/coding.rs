@@ -132,7 +132,11 @@ pub fn encode<'py>(
 /// `options` with the largest tile side `tile` (0: one stream whatever the size), code
 /// blocks of `block` and `threads` threads coding tiles (0: one per core), as `--tile`,
 /// `--block` and `--threads` say.
-fn tiled(options: EncodeOptions, (tile, block): (u32, Option<u32>), threads: usize) -> EncodeOptions {
+fn tiled(
+    options: EncodeOptions,
+    (tile, block): (u32, Option<u32>),
+    threads: usize,
+) -> EncodeOptions {
     options
         .with_tile_size((tile > 0).then_some(tile))
         .with_code_block(block)

@@ -13,7 +13,7 @@ use wavemesh_codec::tiles::{
     cut_to_budget, encode_tile as encode_one_tile, tile_cap, tiled_head, EncodedTile, RasterInfo,
     TileEntry, TileSummary,
 };
-use wavemesh_codec::{Header, Metadata, Mode, TileGrid, Wavelet, Window};
+use wavemesh_codec::{EncodeOptions, Header, Metadata, Mode, Raster, TileGrid, Wavelet, Window};
 
 use crate::coding::{bpp_budget, encode_options, raster_with};
 use crate::errors::{codec_error, io_error};
@@ -160,9 +160,9 @@ pub fn encode_tile<'py>(
     wavelet: Option<&str>,
     cap: Option<u64>,
 ) -> PyResult<(Bound<'py, PyBytes>, SummaryValues)> {
-    let part = raster_with(array, nodata, None, None, None)?;
-    let samples = (raster_width as u64).saturating_mul(raster_height as u64);
-    let options = encode_options(samples, bpp, max_error, precision, wavelet)?;
+    let raster = (raster_width, raster_height);
+    let (part, options, samples) =
+        samples_and_options(array, nodata, raster, (bpp, max_error, precision, wavelet))?;
     let window = Window {
         x: 0,
         y: 0,
@@ -175,6 +175,24 @@ pub fn encode_tile<'py>(
         .map_err(codec_error)?;
     let bytes = PyBytes::new(py, &tile.bytes);
     Ok((bytes, summary_values(tile)))
+}
+
+/// The quality keywords of [`encode_tile`] and [`settled_wavelet`].
+type Quality<'a> = (Option<f64>, Option<f64>, Option<f64>, Option<&'a str>);
+
+/// `array` as a raster (voids at `nodata`), and the encoder's options for a
+/// `raster_width × raster_height` raster with the `quality` keywords `(bpp, max_error,
+/// precision, wavelet)`, and that raster's sample count.
+fn samples_and_options(
+    array: &Bound<'_, PyAny>,
+    nodata: Option<f64>,
+    (raster_width, raster_height): (usize, usize),
+    (bpp, max_error, precision, wavelet): Quality<'_>,
+) -> PyResult<(Raster, EncodeOptions, u64)> {
+    let part = raster_with(array, nodata, None, None, None)?;
+    let samples = (raster_width as u64).saturating_mul(raster_height as u64);
+    let options = encode_options(samples, bpp, max_error, precision, wavelet)?;
+    Ok((part, options, samples))
 }
 
 /// The window `(x, y, width, height)` at the centre of a `width × height` raster on
@@ -203,9 +221,9 @@ pub fn settled_wavelet(
     precision: Option<f64>,
     wavelet: Option<&str>,
 ) -> PyResult<&'static str> {
-    let centre = raster_with(array, nodata, None, None, None)?;
-    let samples = (raster_width as u64).saturating_mul(raster_height as u64);
-    let options = encode_options(samples, bpp, max_error, precision, wavelet)?;
+    let raster = (raster_width, raster_height);
+    let (centre, options, _) =
+        samples_and_options(array, nodata, raster, (bpp, max_error, precision, wavelet))?;
     let settled = py.detach(|| options.wavelet_chosen_for(&centre));
     Ok(match settled.wavelet {
         Wavelet::Cdf97 => "97",
