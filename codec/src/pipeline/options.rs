@@ -76,7 +76,9 @@ pub struct EncodeOptions {
 
 impl EncodeOptions {
     /// The defaults: 9/7 when only a byte budget is given, 13/11 for lossless and
-    /// error-bounded coding; tiles of [`DEFAULT_TILE`] a side; every core.
+    /// error-bounded coding (or the 5/3, where the raster codes smaller with it: see
+    /// [`adaptive_wavelet`](Self::adaptive_wavelet)); tiles of [`DEFAULT_TILE`] a side;
+    /// every core.
     pub fn new(quality: Quality, budget_bytes: Option<u64>) -> EncodeOptions {
         let wavelet = match (quality, budget_bytes) {
             (Quality::Lossless, Some(_)) => Wavelet::Cdf97,
@@ -94,12 +96,12 @@ impl EncodeOptions {
         }
     }
 
-    /// Bit-exact coding (13/11), with the defaults of [`EncodeOptions::new`].
+    /// Bit-exact coding (13/11 or 5/3), with the defaults of [`EncodeOptions::new`].
     pub fn lossless() -> EncodeOptions {
         EncodeOptions::new(Quality::Lossless, None)
     }
 
-    /// Every valid sample within `error` data units (13/11), with the defaults of
+    /// Every valid sample within `error` data units (13/11 or 5/3), with the defaults of
     /// [`EncodeOptions::new`].
     pub fn max_error(error: f64) -> EncodeOptions {
         EncodeOptions::new(Quality::MaxError(error), None)
