@@ -440,7 +440,7 @@ pub fn roundtrip(data: &[u8]) {
         Ok(encoded) => encoded,
         Err(e) => {
             let must_succeed = options.quality == Quality::Lossless
-                && options.wavelet == Wavelet::Int53
+                && options.wavelet.is_reversible()
                 && options.budget_bytes.is_none()
                 && !levels_given
                 && match &raster.samples {
@@ -525,7 +525,7 @@ fn check_requested(original: &Raster, decoded: &Decoded, options: &EncodeOptions
     let r = &decoded.raster;
     let no_budget = options.budget_bytes.is_none();
     match options.quality {
-        Quality::Lossless if no_budget && options.wavelet == Wavelet::Int53 => {
+        Quality::Lossless if no_budget && options.wavelet.is_reversible() => {
             assert_eq!(
                 header.mode,
                 Mode::Lossless,
@@ -811,10 +811,10 @@ fn arbitrary_encode_options(input: &mut Input, raster: &Raster) -> (EncodeOption
                 1 => Quality::MaxError(bound),
                 _ => Quality::Precision(bound),
             };
-            let wavelet = if mode & 0x40 != 0 {
-                Wavelet::Cdf97
-            } else {
-                Wavelet::Int53
+            let wavelet = match (mode & 0x40 != 0, mode & 0x04 != 0) {
+                (true, _) => Wavelet::Cdf97,
+                (false, false) => Wavelet::Int53,
+                (false, true) => Wavelet::Int1311,
             };
             EncodeOptions::new(quality, (mode & 0x80 != 0).then_some(budget))
                 .with_wavelet(wavelet)

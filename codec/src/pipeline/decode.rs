@@ -396,10 +396,12 @@ fn narrow_reconstruction(
     let top_plane = header.top_plane.map(u32::from);
     let source = || payload_source(sections, payload_complete);
     let (coder, max_passes) = (header.coder, options.max_passes);
-    if let Some(decoder) =
-        Decoder::<Narrow<false>>::try_run_from(layout, coder, source(), top_plane, max_passes)
-    {
-        return narrow_samples(decoder, header, mask);
+    // Without escapes first; with them when a value outgrows its slot, in the decode or
+    // after it (the midpoints of a prefix, the shift of the LL band).
+    let unescaped =
+        Decoder::<Narrow<false>>::try_run_from(layout, coder, source(), top_plane, max_passes);
+    if let Some(done) = unescaped.and_then(|decoder| narrow_samples(decoder, header, mask)) {
+        return Some(done);
     }
     let decoder =
         Decoder::<Narrow<true>>::try_run_from(layout, coder, source(), top_plane, max_passes)?;
@@ -527,6 +529,9 @@ fn narrow_samples<const ESCAPES: bool>(
     let (width, height) = (header.width as usize, header.height as usize);
     let levels = header.levels as u32;
     let coefficients = decoder.integer_coefficients();
+    if coefficients.overflowed() {
+        return None;
+    }
     let values = narrow_inverse(header.wavelet, coefficients, (width, height, levels), shift)?;
     let mapping = ValueMapping {
         offset: centre,
@@ -548,7 +553,8 @@ fn narrow_samples<const ESCAPES: bool>(
 /// of the other band's values whose weights sum to 0 or 1, which the shift leaves alone
 /// or shifts by as much, as in JPEG 2000's DC level shift), so the samples are those of
 /// the `i32` inverse minus `shift`. A sample that still does not fit is saturated, as its
-/// type's range clamps it later. `None` when too many values do not fit.
+/// type's range clamps it later. `None` when too many values do not fit, or one does not
+/// fit its slot in a store without escapes.
 fn narrow_inverse<const ESCAPES: bool>(
     wavelet: Wavelet,
     mut coefficients: Narrow<ESCAPES>,
@@ -558,6 +564,10 @@ fn narrow_inverse<const ESCAPES: bool>(
     let ll = (region_side(width, levels), region_side(height, levels));
     for i in (0..ll.1).flat_map(|y| (y * width..).take(ll.0)) {
         coefficients.set(i, coefficients.at(i).wrapping_sub(shift));
+    }
+    // A shifted value that outgrew its slot without escapes was not stored.
+    if coefficients.overflowed() {
+        return None;
     }
     let (mut values, _, mut spilled) = coefficients.into_parts();
     if !wavelet::inverse_integer_i16(wavelet, &mut values, &mut spilled, width, height, levels) {
