@@ -475,3 +475,53 @@ fn a_small_tiled_file_decoded_at_a_rate_reports_that_rate_and_reads_each_byte_on
     let bpp = report["bpp"].as_f64().unwrap();
     assert_eq!(bpp, used as f64 * 8.0 / (256.0 * 256.0));
 }
+
+#[test]
+fn streaming_and_in_memory_encodes_settle_on_the_same_wavelet() {
+    // A noisy raster takes the 5/3 and a fractal one the 13/11; both are read by tile
+    // rows when streamed, and the wavelet is settled on the raster's centre either way.
+    let dir = scratch("cli-tiles");
+    let (width, height) = (700usize, 600usize);
+    let mut state = 0x5DEE_CE66_Du64;
+    let noisy: Vec<i16> = (0..width * height)
+        .map(|i| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            ((i % width) / 4) as i16 + (state % 400) as i16
+        })
+        .collect();
+    let noisy_tif = dir.path().join("noisy.tif");
+    let raster = wavemesh_codec::Raster::new(width, height, wavemesh_codec::Samples::I16(noisy));
+    wavemesh::dem::write_dem(&noisy_tif, &raster.unwrap()).unwrap();
+    let fractal_tif = synth(dir.path(), 700, 600);
+    for (tif, wavelet) in [(&noisy_tif, "5/3"), (&fractal_tif, "13/11")] {
+        let (streamed, memory) = (dir.path().join("s.ezw"), dir.path().join("m.ezw"));
+        let report = json(&[
+            "encode",
+            s(tif),
+            "-o",
+            s(&streamed),
+            "--tile",
+            "256",
+            "--json",
+        ]);
+        assert_eq!(report["wavelet"], wavelet, "{}", tif.display());
+        let args = [
+            "encode",
+            s(tif),
+            "-o",
+            s(&memory),
+            "--tile",
+            "256",
+            "--verify",
+        ];
+        json(&[&args[..], &["--json"]].concat());
+        assert_eq!(
+            std::fs::read(&streamed).unwrap(),
+            std::fs::read(&memory).unwrap(),
+            "{}: streaming differs from memory",
+            tif.display()
+        );
+    }
+}
