@@ -482,7 +482,7 @@ fn streaming_and_in_memory_encodes_settle_on_the_same_wavelet() {
     // rows when streamed, and the wavelet is settled on the raster's centre either way.
     let dir = scratch("cli-tiles");
     let (width, height) = (700usize, 600usize);
-    let mut state = 0x5DEE_CE66_Du64;
+    let mut state = 0x0005_DEEC_E66Du64;
     let noisy: Vec<i16> = (0..width * height)
         .map(|i| {
             state ^= state << 13;
