@@ -5,9 +5,7 @@ use crate::container::{physical_offset, Header, StreamSections, CHUNK};
 use crate::corrections::apply_corrections;
 use crate::entropy::ArithmeticDecoder;
 use crate::error::CodecError;
-use crate::ezw::{
-    is_escape, CoefficientLayout, Decoder, Known, Narrow, Store, MAX_COEFFICIENT_PLANE,
-};
+use crate::ezw::{is_escape, CoefficientLayout, Decoder, Narrow, Store, MAX_COEFFICIENT_PLANE};
 use crate::mask::Mask;
 use crate::progress::{self, Stage};
 use crate::quantize::{
@@ -397,7 +395,7 @@ fn narrow_reconstruction(
     let source = || payload_source(sections, payload_complete);
     let (coder, max_passes) = (header.coder, options.max_passes);
     // Without escapes first; with them when a value outgrows its slot, in the decode or
-    // after it (the midpoints of a prefix, the shift of the LL band).
+    // after it (the midpoints of a prefix).
     let unescaped =
         Decoder::<Narrow<false>>::try_run_from(layout, coder, source(), top_plane, max_passes);
     if let Some(done) = unescaped.and_then(|decoder| narrow_samples(decoder, header, mask)) {
@@ -553,23 +551,30 @@ fn narrow_samples<const ESCAPES: bool>(
 /// of the other band's values whose weights sum to 0 or 1, which the shift leaves alone
 /// or shifts by as much, as in JPEG 2000's DC level shift), so the samples are those of
 /// the `i32` inverse minus `shift`. A sample that still does not fit is saturated, as its
-/// type's range clamps it later. `None` when too many values do not fit, or one does not
-/// fit its slot in a store without escapes.
+/// type's range clamps it later. `None` when too many values do not fit.
 fn narrow_inverse<const ESCAPES: bool>(
     wavelet: Wavelet,
-    mut coefficients: Narrow<ESCAPES>,
+    coefficients: Narrow<ESCAPES>,
     (width, height, levels): (usize, usize, u32),
     shift: i32,
 ) -> Option<Vec<i16>> {
+    // Integer slots are in units of 1; a shifted value that leaves its slot is kept
+    // beside it, as the inverse keeps what does not fit.
+    let (mut values, _, mut spilled) = coefficients.into_parts();
     let ll = (region_side(width, levels), region_side(height, levels));
     for i in (0..ll.1).flat_map(|y| (y * width..).take(ll.0)) {
-        coefficients.set(i, coefficients.at(i).wrapping_sub(shift));
+        let value = spilled.get(&i).copied().unwrap_or(values[i].into());
+        let shifted = value.wrapping_sub(shift);
+        match i16::try_from(shifted) {
+            Ok(narrow) => {
+                values[i] = narrow;
+                spilled.remove(&i);
+            }
+            Err(_) => {
+                spilled.insert(i, shifted);
+            }
+        }
     }
-    // A shifted value that outgrew its slot without escapes was not stored.
-    if coefficients.overflowed() {
-        return None;
-    }
-    let (mut values, _, mut spilled) = coefficients.into_parts();
     if !wavelet::inverse_integer_i16(wavelet, &mut values, &mut spilled, width, height, levels) {
         return None;
     }
