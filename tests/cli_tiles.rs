@@ -28,6 +28,25 @@ fn synth(dir: &Path, w: u32, h: u32) -> std::path::PathBuf {
     path
 }
 
+/// A copy of the tiled file `ezw` (`d.ezw` beside it) with a bit flipped in its middle:
+/// `verify` says it is damaged (exit 3), `decode` to `out` warns of a tile and decodes
+/// the rest. The copy's path and what `verify` printed.
+fn damage_one_tile(ezw: &Path, out: &Path) -> (std::path::PathBuf, String) {
+    let mut bytes = std::fs::read(ezw).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 0x20;
+    let damaged = ezw.with_file_name("d.ezw");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let verify = wavemesh(&["verify", s(&damaged)]);
+    assert_eq!(verify.status.code(), Some(3));
+    let said = String::from_utf8_lossy(&verify.stdout).to_string();
+    assert!(said.contains("DAMAGED"), "{said}");
+    let decode = wavemesh(&["decode", s(&damaged), "-o", s(out)]);
+    assert!(decode.status.success());
+    assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+    (damaged, said)
+}
+
 #[test]
 fn streaming_coding_is_lossless_and_independent_of_threads() {
     let dir = scratch("cli-tiles");
@@ -223,17 +242,7 @@ fn budgets_and_damage_on_tiled_files() {
     assert!(rmse(&fine) < rmse(&coarse));
     assert!(coarse["bytes_read"].as_u64().unwrap() <= (0.5 * 900.0 * 600.0 / 8.0) as u64 + 65536);
     // Damage inside one tile: verify names it, decode warns and decodes the others.
-    let mut bytes = std::fs::read(&lossless).unwrap();
-    let n = bytes.len();
-    bytes[n / 2] ^= 0x20;
-    let damaged = dir.path().join("d.ezw");
-    std::fs::write(&damaged, &bytes).unwrap();
-    let verify = wavemesh(&["verify", s(&damaged)]);
-    assert_eq!(verify.status.code(), Some(3));
-    assert!(String::from_utf8_lossy(&verify.stdout).contains("DAMAGED"));
-    let decode = wavemesh(&["decode", s(&damaged), "-o", s(&out)]);
-    assert!(decode.status.success());
-    assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+    let (damaged, _) = damage_one_tile(&lossless, &out);
     // --strict refuses it, and leaves no output behind.
     let strict_out = dir.path().join("strict.tif");
     let strict = wavemesh(&["decode", s(&damaged), "-o", s(&strict_out), "--strict"]);
@@ -426,21 +435,8 @@ fn code_blocks_stream_like_memory_and_name_their_damage() {
     ]);
     let file_bytes = window["file_bytes"].as_u64().unwrap();
     assert!(window["bytes_read"].as_u64().unwrap() < file_bytes / 2 + 65536);
-    let mut bytes = std::fs::read(&lossless).unwrap();
-    let n = bytes.len();
-    bytes[n / 2] ^= 0x20;
-    let damaged = dir.path().join("d.ezw");
-    std::fs::write(&damaged, &bytes).unwrap();
-    let verify = wavemesh(&["verify", s(&damaged)]);
-    assert_eq!(verify.status.code(), Some(3));
-    let said = String::from_utf8_lossy(&verify.stdout).to_string();
-    assert!(
-        said.contains("code block") && said.contains("DAMAGED"),
-        "{said}"
-    );
-    let decode = wavemesh(&["decode", s(&damaged), "-o", s(&out)]);
-    assert!(decode.status.success());
-    assert!(String::from_utf8_lossy(&decode.stderr).contains("tile "));
+    let (_, said) = damage_one_tile(&lossless, &out);
+    assert!(said.contains("code block"), "{said}");
     // Sides that are not multiples of 64: a usage error.
     let bad = wavemesh(&["encode", s(&tif), "-o", s(&out), "--block", "100"]);
     assert_eq!(bad.status.code(), Some(2));

@@ -7,7 +7,7 @@
 //! N bytes. The files are 32 × 24 synthetic terrain (a sine relief with noise).
 
 use wavemesh_codec::format::Coder;
-use wavemesh_codec::{decode, DecodeOptions, Mode, Samples, Wavelet};
+use wavemesh_codec::{decode, DecodeOptions, Decoded, Mode, Samples, Wavelet};
 
 mod support;
 
@@ -15,6 +15,20 @@ use support::raw;
 
 fn fixture(name: &str) -> Vec<u8> {
     support::fixture("v2", name)
+}
+
+/// Fixture `NAME.ezw` decoded within `budget` bytes: undamaged, to the samples of
+/// `RECORDED.decoded`. The decode, for the caller's checks of its header.
+fn decodes_as_recorded(name: &str, budget: Option<u64>, recorded: &str) -> Decoded {
+    let options = DecodeOptions::default().with_max_bytes(budget);
+    let out = decode(&fixture(&format!("{name}.ezw")), &options).unwrap();
+    assert!(out.damage.is_none(), "{name} damage");
+    assert_eq!(
+        raw(&out.raster.samples),
+        fixture(&format!("{recorded}.decoded")),
+        "{name} at {budget:?}"
+    );
+    out
 }
 
 #[test]
@@ -100,14 +114,8 @@ fn coder_2_and_3_fixtures_decode_to_their_recorded_samples() {
             "coder3_i16_97_199_bytes",
         ),
     ] {
-        let decoded = decode(&fixture(&format!("{name}.ezw")), &DecodeOptions::default()).unwrap();
+        let decoded = decodes_as_recorded(name, None, samples);
         assert_eq!(decoded.header.coder, coder, "{name} coder");
-        assert!(decoded.damage.is_none(), "{name} damage");
-        assert_eq!(
-            raw(&decoded.raster.samples),
-            fixture(&format!("{samples}.decoded")),
-            "{name} samples"
-        );
     }
 }
 
@@ -165,19 +173,11 @@ fn tiled_files_without_overlap_decode_to_their_recorded_samples() {
 /// samples, its tiles and overlap as given.
 fn tiled_fixtures_decode(cases: &[(&str, Option<u64>, &str)], grid: (u32, u32, u32)) {
     for &(name, budget, decoded) in cases {
-        let file = fixture(&format!("{name}.ezw"));
-        let options = DecodeOptions::default().with_max_bytes(budget);
-        let out = decode(&file, &options).unwrap();
+        let out = decodes_as_recorded(name, budget, decoded);
         let tiling = out.header.tiling.expect("a tiled file");
         assert_eq!(
             (tiling.tile_width, tiling.tile_height, tiling.overlap),
             grid
-        );
-        assert!(out.damage.is_none(), "{name} damage");
-        assert_eq!(
-            raw(&out.raster.samples),
-            fixture(&format!("{decoded}.decoded")),
-            "{name} at {budget:?}"
         );
     }
 }
@@ -246,17 +246,10 @@ fn code_block_files_decode_to_their_recorded_samples() {
         ("blocks_i16_97_2bpp", None, "blocks_i16_97_2bpp", (64, 64)),
     ];
     for (name, budget, decoded, tile) in cases {
-        let options = DecodeOptions::default().with_max_bytes(budget);
-        let out = decode(&fixture(&format!("{name}.ezw")), &options).unwrap();
+        let out = decodes_as_recorded(name, budget, decoded);
         let tiling = out.header.tiling.expect("a tiled file");
         assert_eq!((tiling.tile_width, tiling.tile_height), tile, "{name}");
         assert_eq!(tiling.code_block, Some(64), "{name}");
-        assert!(out.damage.is_none(), "{name} damage");
-        assert_eq!(
-            raw(&out.raster.samples),
-            fixture(&format!("{decoded}.decoded")),
-            "{name} at {budget:?}"
-        );
     }
 }
 
@@ -264,19 +257,10 @@ fn code_block_files_decode_to_their_recorded_samples() {
 /// terrain of the code-block fixtures, lossless in one stream, whole and at 1500 bytes.
 #[test]
 fn a_13_11_file_decodes_to_its_recorded_samples() {
-    let file = fixture("int1311_i16_lossless.ezw");
-    let whole = decode(&file, &DecodeOptions::default()).unwrap();
+    let name = "int1311_i16_lossless";
+    let whole = decodes_as_recorded(name, None, "tiled_i16_lossless");
     assert_eq!(whole.header.wavelet, Wavelet::Int1311);
     assert!(whole.complete);
-    assert_eq!(
-        raw(&whole.raster.samples),
-        fixture("tiled_i16_lossless.decoded")
-    );
-    let options = DecodeOptions::default().with_max_bytes(Some(1500));
-    let prefix = decode(&file, &options).unwrap();
+    let prefix = decodes_as_recorded(name, Some(1500), "int1311_i16_lossless.prefix1500");
     assert!(!prefix.complete);
-    assert_eq!(
-        raw(&prefix.raster.samples),
-        fixture("int1311_i16_lossless.prefix1500.decoded")
-    );
 }
