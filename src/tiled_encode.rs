@@ -14,8 +14,8 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use thiserror::Error;
 use wavemesh_codec::tiles::{
-    blocked_head, cut_to_budget, cut_units, encode_block, encode_tile, tile_cap, tiled_head,
-    EncodedTile, EncodedUnit, RasterInfo, TileEntry, TileSummary,
+    blocked_head, budget_caps, cut_to_budget, cut_units, encode_block, encode_tile, tiled_head,
+    EncodedTile, EncodedUnit, RasterInfo, TileDetail, TileEntry, TileSummary,
 };
 use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid, Window};
 
@@ -60,7 +60,8 @@ type Block = (usize, Range<usize>);
 /// the whole row, so memory does not grow with the raster's width. The bytes do not
 /// depend on `block_width`. Without a byte budget the
 /// tiles' streams wait in a temporary file; with one they are kept in memory (each
-/// coded up to about four times its share of the budget) until the budget is shared.
+/// coded up to its cap, [`budget_caps`], from a pass over one row in eight of the DEM)
+/// until the budget is shared.
 /// The wavelet is settled on the raster's centre, read once more for it, as in memory
 /// ([`EncodeOptions::wavelet_chosen_for`]).
 /// `rows_done(k)` is called after each tile row, `k` rows of [`TileGrid::rows`] done.
@@ -92,7 +93,11 @@ pub fn encode_tiled(
             rows_done(block.0 + 1);
         }
     };
-    let coding = (&mut *bands, grid, &blocks[..]);
+    let caps = match options.budget_bytes {
+        Some(budget) => Some(detail_caps(bands, grid, budget)?),
+        None => None,
+    };
+    let coding = (&mut *bands, grid, &blocks[..], caps.as_deref());
     match options.threads {
         1 => code_blocks_in_turn(coding, options, &mut take, &mut block_done)?,
         n => code_blocks_ahead(coding, options, n, &mut take, &mut block_done)?,
@@ -250,12 +255,41 @@ fn write_out(
 }
 
 /// A streaming encode's source: the DEM, its tile grid and the blocks it is read in.
-type Coding<'a> = (&'a mut RowBands, &'a TileGrid, &'a [Block]);
+/// The DEM, its tiles, the blocks they are read in and, under a byte budget, each tile's
+/// cap.
+type Coding<'a> = (
+    &'a mut RowBands,
+    &'a TileGrid,
+    &'a [Block],
+    Option<&'a [u64]>,
+);
+
+/// Each tile's cap for a `budget`-byte encode ([`budget_caps`]), the tiles' detail read
+/// before any is coded: a pass over the rows [`TileDetail::rows`] counts (one in
+/// [`TileDetail::ROW_STEP`], each with the row above), top to bottom.
+fn detail_caps(
+    bands: &mut RowBands,
+    grid: &TileGrid,
+    budget: u64,
+) -> Result<Vec<u64>, TiledEncodeError> {
+    let mut details = vec![TileDetail::default(); grid.count()];
+    for row in 0..grid.rows() {
+        let tiles = row * grid.columns()..(row + 1) * grid.columns();
+        for y in TileDetail::rows(&grid.coded(tiles.start)) {
+            let rows = bands.read_rows(y - 1, 2)?;
+            for k in tiles.clone() {
+                let w = grid.coded(k);
+                details[k].add_row(&rows, w.x..w.x + w.width);
+            }
+        }
+    }
+    Ok(budget_caps(&details, grid, budget))
+}
 
 /// Reads each block, then codes its tiles, one after the other on the calling thread,
 /// handing the tiles to `take` in grid order and each block to `block_done`.
 fn code_blocks_in_turn(
-    (bands, grid, blocks): Coding,
+    (bands, grid, blocks, caps): Coding,
     options: &EncodeOptions,
     take: &mut dyn FnMut(EncodedTile) -> io::Result<()>,
     block_done: &mut dyn FnMut(&Block),
@@ -264,7 +298,7 @@ fn code_blocks_in_turn(
     read_blocks(bands, grid, blocks, &mut |b, band| {
         let block = &blocks[b];
         outcome = band.map_err(TiledEncodeError::from).and_then(|band| {
-            for tile in encode_block(&band, grid, block.0, block.1.clone(), options)? {
+            for tile in encode_block(&band, grid, block.clone(), options, caps)? {
                 take(tile)?;
             }
             block_done(block);
@@ -280,7 +314,7 @@ fn code_blocks_in_turn(
 /// ahead of their collection than there are threads, across blocks, so no thread waits
 /// for a block's slowest tile. The tiles, and so the file, are those of one thread.
 fn code_blocks_ahead(
-    (bands, grid, blocks): Coding,
+    (bands, grid, blocks, caps): Coding,
     options: &EncodeOptions,
     threads: usize,
     take: &mut dyn FnMut(EncodedTile) -> io::Result<()>,
@@ -291,7 +325,6 @@ fn code_blocks_ahead(
         .build()
         .map_err(io::Error::other)?;
     let ahead = pool.current_num_threads() + 1;
-    let samples = (grid.width * grid.height) as u64;
     std::thread::scope(|scope| {
         let (send, read) = sync_channel(0);
         scope.spawn(move || {
@@ -317,7 +350,7 @@ fn code_blocks_ahead(
                 }
                 let w = grid.coded(k);
                 let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
-                let (options, cap) = (options.clone(), tile_cap(options.budget_bytes, &w, samples));
+                let (options, cap) = (options.clone(), caps.map(|caps| caps[k]));
                 let (done, tile) = sync_channel(1);
                 pool.spawn_fifo(move || {
                     // The receiver is gone only when the encode stopped on an error.

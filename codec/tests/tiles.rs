@@ -372,12 +372,12 @@ fn every_tile_of_a_max_error_file_has_a_ladder_start() {
 }
 
 /// A budget's cut does not depend on how far the encoder first coded each tile: tiles
-/// coded up to their caps (coded again where the cut comes near a cap) and tiles coded
-/// whole cut to the same bytes, at rates where the caps stop every tile and where they
-/// stop none.
+/// coded up to the encoder's caps by detail, up to half an even share and 4 KiB each
+/// (the encoder's least cap; coded again where the cut comes near a cap), and whole cut
+/// to the same bytes, at rates where the caps stop every tile and where they stop none.
 #[test]
 fn a_cut_does_not_depend_on_the_tiles_caps() {
-    use wavemesh_codec::tiles::{cut_to_budget, encode_tile, tile_cap, RasterInfo};
+    use wavemesh_codec::tiles::{budget_caps, cut_to_budget, encode_tile, RasterInfo, TileDetail};
     use wavemesh_codec::{CodecError, TileGrid};
     let mut raster = terrain(300, 260);
     if let Samples::I16(s) = &mut raster.samples {
@@ -392,6 +392,7 @@ fn a_cut_does_not_depend_on_the_tiles_caps() {
     }
     let grid = TileGrid::balanced(300, 260, 128).unwrap();
     let info = RasterInfo::of(&raster);
+    let mut starved_tiles = 0;
     for budget in [1_000, 4_000, 15_000, 40_000] {
         let options = tiled(128, Quality::Lossless, Some(budget));
         let code = |k: usize, cap: Option<u64>| {
@@ -411,17 +412,22 @@ fn a_cut_does_not_depend_on_the_tiles_caps() {
                 cut_to_budget::<CodecError>(tiles.unwrap(), &info, &grid, budget, recode).unwrap();
             cut.into_iter().map(|t| t.bytes).collect::<Vec<_>>()
         };
-        let samples = (300 * 260) as u64;
-        let capped = cut(
-            &|k| tile_cap(Some(budget), &grid.coded(k), samples),
-            &mut recode,
-        );
+        let details: Vec<TileDetail> = (0..grid.count())
+            .map(|k| TileDetail::of(&raster, &grid.coded(k)))
+            .collect();
+        let caps = budget_caps(&details, &grid, budget);
+        let by_detail = cut(&|k| Some(caps[k]), &mut recode);
+        let half_share = budget / grid.count() as u64 / 2 + 4096;
+        let starved = cut(&|_| Some(half_share), &mut recode);
         let whole = cut(&|_| None, &mut |_, _| {
             unreachable!("a whole tile is never starved")
         });
+        assert_eq!(by_detail, whole, "budget {budget}");
         assert_eq!(
-            capped, whole,
+            starved, whole,
             "budget {budget} ({recoded} tiles coded again)"
         );
+        starved_tiles += recoded;
     }
+    assert!(starved_tiles > 0, "no cap came near a cut");
 }

@@ -10,7 +10,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use wavemesh_codec::tiles::{
-    cut_to_budget, encode_tile as encode_one_tile, tile_cap, tiled_head, EncodedTile, RasterInfo,
+    area_cap, cut_to_budget, encode_tile as encode_one_tile, tiled_head, EncodedTile, RasterInfo,
     TileEntry, TileSummary,
 };
 use wavemesh_codec::{EncodeOptions, Header, Metadata, Mode, Raster, TileGrid, Wavelet, Window};
@@ -141,8 +141,8 @@ pub fn tile_grid(
 /// Encodes the samples one tile of a `raster_width × raster_height` raster codes (the
 /// tile and its overlap; the quality keywords are those of the whole raster's `encode`,
 /// with `wavelet` as [`settled_wavelet`] settles it for the whole raster; a
-/// `bpp` budget caps the tile at what the single-machine encoder first codes it to, or at
-/// `cap` bytes when given): `(stream, summary)`, the summary opaque values for
+/// `bpp` budget caps the tile at its share of the budget by area, or at `cap` bytes when
+/// given; the cut, and so the file, does not depend on the cap): `(stream, summary)`, the summary opaque values for
 /// [`write_tiled`].
 #[pyfunction]
 #[pyo3(signature = (array, *, raster_width, raster_height, nodata=None, bpp=None,
@@ -169,7 +169,7 @@ pub fn encode_tile<'py>(
         width: part.width,
         height: part.height,
     };
-    let cap = cap.or_else(|| tile_cap(options.budget_bytes, &window, samples));
+    let cap = cap.or_else(|| Some(area_cap(options.budget_bytes?, &window, samples)));
     let tile = py
         .detach(|| encode_one_tile(&part, &options, cap))
         .map_err(codec_error)?;

@@ -8,6 +8,7 @@
 mod allocate;
 mod blocked;
 mod blocks;
+mod caps;
 mod index;
 mod stream;
 mod verify;
@@ -19,6 +20,7 @@ pub use allocate::allocate;
 pub(crate) use allocate::allocate_points;
 pub(crate) use blocked::encode as encode_blocked;
 pub use blocked::{blocked_head, cut_units, unit_grid, EncodedUnit};
+pub use caps::{area_cap, budget_caps, TileDetail};
 pub use decode::decode_tile;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
@@ -317,6 +319,12 @@ pub(crate) fn encode(
     grid: &TileGrid,
 ) -> Result<Encoded, CodecError> {
     let workers = Workers::new(options.threads)?;
+    let caps = options.budget_bytes.map(|budget| {
+        let details: Vec<TileDetail> = (0..grid.count())
+            .map(|k| TileDetail::of(raster, &grid.coded(k)))
+            .collect();
+        budget_caps(&details, grid, budget)
+    });
     let mut tiles: Vec<EncodedTile> = Vec::with_capacity(grid.count());
     for row in 0..grid.rows() {
         let y = row * grid.tile_height;
@@ -333,6 +341,7 @@ pub(crate) fn encode(
             grid,
             grid.row(row),
             options,
+            caps.as_deref(),
         )?);
         let done = (y + height) as u64 * raster.width as u64;
         crate::progress::report(crate::progress::Stage::Tiles, done, raster.len() as u64);
@@ -364,14 +373,15 @@ pub(crate) fn encode(
 
 /// Encodes tiles `columns` (tile columns) of row `row` of `grid` from `band`, the
 /// samples of [`TileGrid::coded_block`] for them, on `options.threads` threads (0: one
-/// per core), in grid order. With a byte budget each tile is coded up to its cap (see
-/// [`cut_to_budget`] for the cut).
+/// per core), in grid order. Under a byte budget each tile is coded up to its cap in
+/// `caps` (every tile's, by index: [`budget_caps`]; see [`cut_to_budget`] for the cut);
+/// without one, `caps` is `None` and each tile is coded completely.
 pub fn encode_block(
     band: &Raster,
     grid: &TileGrid,
-    row: usize,
-    columns: std::ops::Range<usize>,
+    (row, columns): (usize, std::ops::Range<usize>),
     options: &EncodeOptions,
+    caps: Option<&[u64]>,
 ) -> Result<Vec<EncodedTile>, CodecError> {
     let origin = grid.coded_block(row, columns.clone());
     let first = row * grid.columns();
@@ -381,43 +391,30 @@ pub fn encode_block(
         grid,
         first + columns.start..first + columns.end,
         options,
+        caps,
     )
 }
 
 /// Tiles `tiles` (indices, in order) cut from `band`, whose top-left sample is raster
-/// sample (`origin.x`, `origin.y`).
+/// sample (`origin.x`, `origin.y`), each coded completely or, under a byte budget, up
+/// to its cap in `caps` (by tile index).
 fn encode_tiles(
     workers: &Workers,
     (band, origin): (&Raster, &Window),
     grid: &TileGrid,
     tiles: std::ops::Range<usize>,
     options: &EncodeOptions,
+    caps: Option<&[u64]>,
 ) -> Result<Vec<EncodedTile>, CodecError> {
-    let samples = (grid.width * grid.height) as u64;
     workers
         .map(tiles, |k| {
             let w = grid.coded(k);
             let part = band.crop(w.x - origin.x, w.y - origin.y, w.width, w.height);
-            encode_tile(&part, options, tile_cap(options.budget_bytes, &w, samples))
+            encode_tile(&part, options, caps.map(|caps| caps[k]))
         })
         .into_iter()
         .collect()
 }
-
-/// Bytes a tile is coded to under a file budget: one and a half times its share by area
-/// (and 4 KiB).
-/// A tile the allocation reads nearly to its cap is coded again with a larger one
-/// ([`cut_to_budget`]); the cut does not depend on the caps.
-pub fn tile_cap(budget: Option<u64>, tile: &Window, samples: u64) -> Option<u64> {
-    let share = budget? as f64 * (tile.width * tile.height) as f64 / samples as f64;
-    Some((CAP_SHARES * share) as u64 + 4096)
-}
-
-/// A tile's first cap in shares of the budget by area (see [`tile_cap`]). Caps of 4
-/// shares coded sthelens_10m's four tiles to 4 times what the cut kept; the cut is the
-/// same whatever the caps, so they only trade coding past the cut against coding a
-/// detailed tile twice.
-const CAP_SHARES: f64 = 1.5;
 
 /// How many times its bytes a starved tile is coded to again.
 const RECODE_FACTOR: u64 = 3;
