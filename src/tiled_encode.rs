@@ -14,8 +14,9 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use thiserror::Error;
 use wavemesh_codec::tiles::{
-    blocked_head, budget_caps, cut_to_budget, cut_units, encode_block, encode_tile, tiled_head,
-    EncodedTile, EncodedUnit, RasterInfo, TileDetail, TileEntry, TileSummary,
+    blocked_head, budget_caps, cut_to_budget, cut_units, encode_block, encode_tile,
+    lossless_may_fit, tiled_head, EncodedTile, EncodedUnit, RasterInfo, TileDetail, TileEntry,
+    TileSummary,
 };
 use wavemesh_codec::{CodecError, EncodeOptions, Raster, TileGrid, Window};
 
@@ -79,6 +80,18 @@ pub fn encode_tiled(
     let mut summaries: Vec<TileSummary> = Vec::with_capacity(grid.count());
     let blocks = grid.blocks(bands.tiles_per_block(grid, block_width));
     let options = &wavelet_settled(bands, info, grid, &blocks, options)?;
+    let caps = match options.budget_bytes {
+        Some(budget) => {
+            let details = tile_details(bands, grid)?;
+            let coding = (&mut *bands, info, grid, block_width);
+            if let Some(exact) = lossless_if_it_fits(coding, &details, options, output, rows_done)?
+            {
+                return Ok(exact);
+            }
+            Some(budget_caps(&details, grid, budget))
+        }
+        None => None,
+    };
     let mut take = |tile: EncodedTile| -> io::Result<()> {
         summaries.push(tile.summary.clone());
         if options.budget_bytes.is_some() {
@@ -92,10 +105,6 @@ pub fn encode_tiled(
         if block.1.end == grid.columns() {
             rows_done(block.0 + 1);
         }
-    };
-    let caps = match options.budget_bytes {
-        Some(budget) => Some(detail_caps(bands, grid, budget)?),
-        None => None,
     };
     let coding = (&mut *bands, grid, &blocks[..], caps.as_deref());
     match options.threads {
@@ -264,14 +273,13 @@ type Coding<'a> = (
     Option<&'a [u64]>,
 );
 
-/// Each tile's cap for a `budget`-byte encode ([`budget_caps`]), the tiles' detail read
-/// before any is coded: a pass over the rows [`TileDetail::rows`] counts (one in
+/// Each tile's detail, for the caps of a budget encode ([`budget_caps`]), read before
+/// any tile is coded: a pass over the rows [`TileDetail::rows`] counts (one in
 /// [`TileDetail::ROW_STEP`], each with the row above), top to bottom.
-fn detail_caps(
+fn tile_details(
     bands: &mut RowBands,
     grid: &TileGrid,
-    budget: u64,
-) -> Result<Vec<u64>, TiledEncodeError> {
+) -> Result<Vec<TileDetail>, TiledEncodeError> {
     let mut details = vec![TileDetail::default(); grid.count()];
     for row in 0..grid.rows() {
         let tiles = row * grid.columns()..(row + 1) * grid.columns();
@@ -283,7 +291,40 @@ fn detail_caps(
             }
         }
     }
-    Ok(budget_caps(&details, grid, budget))
+    Ok(details)
+}
+
+/// The lossless file a budget encode writes instead of its 9/7 one, as an in-memory
+/// encode does ([`EncodeOptions::lossless_alternative`]): tried when the samples are
+/// integers and the tiles' `details` say it may fit ([`lossless_may_fit`]), coded to a
+/// temporary file, and copied to `output` when it fits the budget.
+fn lossless_if_it_fits(
+    (bands, info, grid, block_width): (&mut RowBands, &RasterInfo, &TileGrid, usize),
+    details: &[TileDetail],
+    options: &EncodeOptions,
+    output: &Path,
+    rows_done: &mut dyn FnMut(usize),
+) -> Result<Option<TiledEncoded>, TiledEncodeError> {
+    let (Some(lossless), Some(budget)) = (options.lossless_alternative(), options.budget_bytes)
+    else {
+        return Ok(None);
+    };
+    let estimate: f64 = details.iter().map(TileDetail::lossless_estimate).sum();
+    if !(info.sample_type.is_integer() && lossless_may_fit(estimate, budget)) {
+        return Ok(None);
+    }
+    let trial = tempfile::NamedTempFile::new()?.into_temp_path();
+    let exact = match encode_tiled(bands, info, grid, &lossless, block_width, &trial, rows_done) {
+        Ok(exact) => exact,
+        Err(TiledEncodeError::Encode(_)) => return Ok(None),
+        Err(e) => return Err(e),
+    };
+    if exact.bytes > budget {
+        return Ok(None);
+    }
+    let mut file = File::open(&trial)?;
+    crate::atomic::write_atomic(output, |out| io::copy(&mut file, out).map(drop))?;
+    Ok(Some(exact))
 }
 
 /// Reads each block, then codes its tiles, one after the other on the calling thread,

@@ -6,7 +6,7 @@ mod support;
 
 use std::path::Path;
 
-use support::{json, s, scratch, wavemesh};
+use support::{json, s, scratch, stdout, wavemesh};
 use wavemesh::dem::{read_dem, ReadOptions};
 
 fn read(path: &Path) -> wavemesh_codec::Raster {
@@ -520,4 +520,40 @@ fn streaming_and_in_memory_encodes_settle_on_the_same_wavelet() {
             tif.display()
         );
     }
+}
+
+#[test]
+fn a_budget_the_lossless_file_fits_writes_it_streamed_or_not() {
+    let dir = scratch("cli-tiles");
+    let tif = synth(dir.path(), 700, 600);
+    let lossless = dir.path().join("l.ezw");
+    json(&[
+        "encode",
+        s(&tif),
+        "-o",
+        s(&lossless),
+        "--tile",
+        "256",
+        "--json",
+    ]);
+    let bytes = std::fs::read(&lossless).unwrap();
+    let bpp = format!("{:.3}", 1.02 * bytes.len() as f64 * 8.0 / (700.0 * 600.0));
+    let (streamed, memory) = (dir.path().join("s.ezw"), dir.path().join("m.ezw"));
+    let args = ["encode", s(&tif), "--tile", "256", "--bpp", &bpp];
+    let report = json(&[&args[..], &["-o", s(&streamed), "--json"]].concat());
+    assert_eq!(report["wavelet"], "13/11");
+    assert_eq!(std::fs::read(&streamed).unwrap(), bytes);
+    json(&[&args[..], &["-o", s(&memory), "--verify", "--json"]].concat());
+    assert_eq!(std::fs::read(&memory).unwrap(), bytes);
+    let text = stdout(&[&args[..], &["-o", s(&streamed)]].concat());
+    assert!(text.contains("the lossless file fits the budget"), "{text}");
+    // Asked for, the 9/7 it is.
+    let forced = json(
+        &[
+            &args[..],
+            &["-o", s(&streamed), "--wavelet", "97", "--json"],
+        ]
+        .concat(),
+    );
+    assert_eq!(forced["wavelet"], "9/7");
 }

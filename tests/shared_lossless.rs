@@ -72,3 +72,32 @@ fn every_shared_dem_round_trips_bit_exactly() {
         );
     }
 }
+
+#[test]
+fn integer_dems_complete_97_streams_decode_exactly() {
+    let Some(dir) =
+        support::shared_dem("shared_lossless::integer_dems_complete_97_streams_decode_exactly")
+    else {
+        return;
+    };
+    for dataset in load_manifest(&dir).unwrap() {
+        let raster = read_dem(&dataset.tif, &ReadOptions::default()).unwrap();
+        if !raster.sample_type().is_integer() {
+            continue;
+        }
+        // 32 bits a sample: beyond every complete 9/7 stream of the set (13 bpp at most).
+        let budget = 4 * raster.len() as u64;
+        let options = EncodeOptions::new(Quality::Lossless, Some(budget))
+            .with_wavelet(wavemesh_codec::Wavelet::Cdf97);
+        let encoded = encode(&raster, &options).unwrap();
+        assert!((encoded.bytes.len() as u64) < budget, "{}", dataset.name);
+        let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+        assert_eq!(decoded.raster.samples, raster.samples, "{}", dataset.name);
+        eprintln!(
+            "{}: complete 9/7 stream {} bytes ({:.3} bpp), exact",
+            dataset.name,
+            encoded.bytes.len(),
+            8.0 * encoded.bytes.len() as f64 / raster.len() as f64
+        );
+    }
+}

@@ -25,7 +25,7 @@ mod samples;
 mod voids;
 
 pub(crate) use prepare::{
-    cheaper_reversible, prepare_97, prepare_integer, Prepared, VoidCoefficients,
+    cheaper_reversible, prepare_97, prepare_integer, FinestStep, Prepared, VoidCoefficients,
 };
 pub(crate) use samples::{
     integer_samples, rescale_97, sample_bits, samples_from_bits, to_samples, whole_offset,

@@ -5,7 +5,7 @@ use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, ContextChoice};
 use crate::pipeline::Quality;
 use crate::pipeline::SHIFT_RULE;
-use crate::quantize::{prepare_97, prepare_integer, VoidCoefficients};
+use crate::quantize::{prepare_97, prepare_integer, FinestStep, VoidCoefficients};
 use crate::raster::Raster;
 use crate::wavelet::{self, ShiftRule, Wavelet};
 
@@ -58,7 +58,7 @@ fn complete_coefficients(
             let kind = (wavelet, Quality::Lossless);
             prepare_integer(raster, &mask, kind, &norms, (voids, rule))?
         }
-        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, voids),
+        Wavelet::Cdf97 => prepare_97(raster, &mask, &norms, (voids, FinestStep::AsTrained)),
     };
     let subbands = wavelet::subbands(width, height, levels);
     let layout = CoefficientLayout::new(width, height, &subbands, &prepared.shifts);

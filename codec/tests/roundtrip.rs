@@ -231,6 +231,89 @@ fn every_prefix_decodes_and_error_falls() {
 }
 
 #[test]
+fn an_integer_rasters_complete_97_stream_is_exact_and_a_larger_budget_is_not_spent() {
+    for sample_type in [
+        SampleType::U8,
+        SampleType::U16,
+        SampleType::I16,
+        SampleType::I32,
+    ] {
+        let raster = terrain(96, 80, sample_type, 17, amplitude(sample_type));
+        let budget = 8 * raster.len() as u64; // 64 bits a sample: more than any stream needs
+        let options = EncodeOptions::new(Quality::Lossless, Some(budget))
+            .with_wavelet(Wavelet::Cdf97)
+            .with_tile_size(None);
+        let encoded = encode(&raster, &options).unwrap();
+        assert!(
+            (encoded.bytes.len() as u64) < budget / 2,
+            "{sample_type:?}: {} bytes of a {budget}-byte budget",
+            encoded.bytes.len()
+        );
+        let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
+        assert!(decoded.complete, "{sample_type:?}");
+        assert_eq!(decoded.raster.samples, raster.samples, "{sample_type:?}");
+        // Its last plane's interval is at most a quarter of a unit, and more than an
+        // eighth: no plane past what the rounding to whole units needs.
+        let step = encoded.header.coefficient_step;
+        assert!(step > 0.125 && step <= 0.25, "{sample_type:?}: step {step}");
+    }
+}
+
+#[test]
+fn a_budget_the_lossless_file_fits_gets_the_lossless_file_unless_97_is_asked_for() {
+    let raster = terrain(96, 80, SampleType::I16, 23, 300.0);
+    let lossless = encode(&raster, &EncodeOptions::lossless()).unwrap();
+    let fits = lossless.bytes.len() as u64 + 100;
+    let default = encode(&raster, &EncodeOptions::budget(fits)).unwrap();
+    assert!(default.header.wavelet.is_reversible());
+    assert_eq!(default.bytes, lossless.bytes);
+    let forced = EncodeOptions::budget(fits).with_wavelet(Wavelet::Cdf97);
+    assert_eq!(
+        encode(&raster, &forced).unwrap().header.wavelet,
+        Wavelet::Cdf97
+    );
+    // Below the lossless size, and for floats, the 9/7 as before.
+    let short = lossless.bytes.len() as u64 - 100;
+    let cut = encode(&raster, &EncodeOptions::budget(short)).unwrap();
+    assert_eq!(cut.header.wavelet, Wavelet::Cdf97);
+    assert_eq!(cut.bytes.len() as u64, short);
+    // Tiled, flat tiles beside detailed ones: the choice is the whole file's, never a
+    // tile's (a flat tile's lossless stream fits its cap, the file's does not).
+    let rugged = terrain(300, 200, SampleType::I16, 29, 3000.0);
+    let values: Vec<f64> = (0..rugged.len())
+        .map(|i| {
+            if i % 300 < 150 {
+                7.0
+            } else {
+                rugged.samples.get_f64(i)
+            }
+        })
+        .collect();
+    let coast = Raster::new(300, 200, Samples::from_f64(SampleType::I16, &values)).unwrap();
+    let budget = encode(&coast, &EncodeOptions::lossless().with_tile_size(Some(128)))
+        .unwrap()
+        .bytes
+        .len() as u64
+        / 2;
+    let default = EncodeOptions::budget(budget).with_tile_size(Some(128));
+    let forced = default.clone().with_wavelet(Wavelet::Cdf97);
+    let (default, forced) = (encode(&coast, &default), encode(&coast, &forced));
+    assert!(
+        default.unwrap().bytes == forced.unwrap().bytes,
+        "a tile chose alone"
+    );
+    let floats = terrain(96, 80, SampleType::F32, 23, 300.0);
+    let budget = 8 * floats.len() as u64;
+    assert_eq!(
+        encode(&floats, &EncodeOptions::budget(budget))
+            .unwrap()
+            .header
+            .wavelet,
+        Wavelet::Cdf97
+    );
+}
+
+#[test]
 fn rate_cut_is_exact() {
     let raster = terrain(64, 64, SampleType::U16, 5, 20000.0);
     for budget in [200u64, 512, 1000, 3000] {

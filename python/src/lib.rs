@@ -28,6 +28,8 @@ fn _wavemesh(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tile_encode::wavelet_sample, m)?)?;
     m.add_function(wrap_pyfunction!(tile_encode::settled_wavelet, m)?)?;
     m.add_function(wrap_pyfunction!(tile_encode::write_tiled, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::tile_lossless_estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(tile_encode::lossless_budget, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::tiled_plan, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::decode_tile, m)?)?;
     m.add_function(wrap_pyfunction!(tile_decode::decode_blocked_tile, m)?)?;

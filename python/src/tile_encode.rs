@@ -10,8 +10,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use wavemesh_codec::tiles::{
-    area_cap, cut_to_budget, encode_tile as encode_one_tile, tiled_head, EncodedTile, RasterInfo,
-    TileEntry, TileSummary,
+    area_cap, cut_to_budget, encode_tile as encode_one_tile, lossless_may_fit, tiled_head,
+    EncodedTile, RasterInfo, TileDetail, TileEntry, TileSummary,
 };
 use wavemesh_codec::{EncodeOptions, Header, Metadata, Mode, Raster, TileGrid, Wavelet, Window};
 
@@ -230,6 +230,36 @@ pub fn settled_wavelet(
         Wavelet::Int53 => "53",
         Wavelet::Int1311 => "1311",
     })
+}
+
+/// The bytes one tile's lossless stream is estimated at, from its coded samples (the
+/// tile and its overlap, as [`encode_tile`] gets them): what [`lossless_budget`] sums.
+#[pyfunction]
+#[pyo3(signature = (array, *, nodata=None))]
+pub fn tile_lossless_estimate(
+    py: Python<'_>,
+    array: &Bound<'_, PyAny>,
+    nodata: Option<f64>,
+) -> PyResult<f64> {
+    let part = raster_with(array, nodata, None, None, None)?;
+    let whole = Window::whole(part.width, part.height);
+    Ok(py.detach(|| TileDetail::of(&part, &whole).lossless_estimate()))
+}
+
+/// The byte budget of `bpp` on a `width × height` integer raster when `encode` tries
+/// its lossless file first (its tiles' [`tile_lossless_estimate`]s summing to
+/// `estimate`), else `None`: the lossless file replaces the 9/7 one when it is at most
+/// that many bytes.
+#[pyfunction]
+#[pyo3(signature = (estimate, *, width, height, bpp))]
+pub fn lossless_budget(
+    estimate: f64,
+    width: usize,
+    height: usize,
+    bpp: f64,
+) -> PyResult<Option<u64>> {
+    let budget = bpp_budget(bpp, (width as u64).saturating_mul(height as u64))?;
+    Ok(lossless_may_fit(estimate, budget).then_some(budget))
 }
 
 /// The tiles `write_tiled` receives: `(stream, summary)` per tile, in grid order.

@@ -61,10 +61,25 @@ def test_a_tile_starved_by_its_first_cap_is_coded_again_as_encode_does(tmp_path)
     dem = np.full((512, 512), 100, np.int16)
     rng = np.random.default_rng(1)
     dem[:128, :128] = rng.integers(-2000, 2000, (128, 128), dtype=np.int16)
-    data = written(tmp_path, da.from_array(dem, chunks=200), tile=128, bpp=1.0)
-    assert data == wavemesh.encode(dem, tile=128, bpp=1.0)
+    # (The 9/7 asked for: the lossless file, 0.89 bpp, would fit the budget.)
+    data = written(tmp_path, da.from_array(dem, chunks=200), tile=128, bpp=1.0, wavelet="97")
+    assert data == wavemesh.encode(dem, tile=128, bpp=1.0, wavelet="97")
+    assert wavemesh.info(data)["wavelet"] == "9/7"
     rough = wavemesh.decode(data)[:128, :128]
     assert np.abs(rough.astype(np.int32) - dem[:128, :128]).max() < 200
+
+
+@pytest.mark.parametrize("dtype", [np.int16, np.uint8])
+def test_a_budget_the_lossless_file_fits_gets_it_as_encode_does(tmp_path, dtype):
+    dem = terrain(dtype, (150, 230))
+    lossless = wavemesh.encode(dem, tile=64)
+    for factor, wavelet in [(1.02, wavemesh.info(lossless)["wavelet"]), (0.9, "9/7")]:
+        bpp = factor * len(lossless) * 8 / dem.size
+        data = written(tmp_path, da.from_array(dem, chunks=(70, 100)), tile=64, bpp=bpp)
+        assert data == wavemesh.encode(dem, tile=64, bpp=bpp)
+        assert wavemesh.info(data)["wavelet"] == wavelet
+    bpp = 1.02 * len(lossless) * 8 / dem.size
+    assert written(tmp_path, da.from_array(dem, chunks=64), tile=64, bpp=bpp) == lossless
 
 
 def test_nodata_masks_and_georeferencing_equal_the_single_machine_encode(tmp_path):

@@ -122,6 +122,14 @@ def encode_tile(
     """One tile's stream and summary (``array``: the tile and its overlap), as the
     single-machine encoder codes that tile (up to ``cap`` bytes when given)."""
 
+def tile_lossless_estimate(array: np.ndarray, *, nodata: Optional[float] = ...) -> float:
+    """The bytes one tile's lossless stream is estimated at (``array``: the tile and its
+    overlap), for ``lossless_budget``."""
+
+def lossless_budget(estimate: float, *, width: int, height: int, bpp: float) -> Optional[int]:
+    """The byte budget of ``bpp`` when ``encode`` tries the lossless file of an integer
+    raster whose tiles' estimates sum to ``estimate``, else ``None``."""
+
 def write_tiled(
     path: str,
     tiles: List[Tuple[bytes, TileSummary]],

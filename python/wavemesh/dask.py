@@ -25,6 +25,7 @@ True
 from __future__ import annotations
 
 import os
+import tempfile
 from typing import TYPE_CHECKING, Any, Optional, Tuple
 
 import numpy as np
@@ -139,6 +140,46 @@ def _coded_tiles(array, grid: Tuple[int, int, int], nodata, quality: dict) -> li
     return list(dask.compute(*tasks))
 
 
+def _lossless_if_it_fits(array, path, grid: Tuple[int, int, int], bpp: float, place: dict):
+    """The bytes of the lossless file written to ``path`` when it fits a ``bpp`` budget,
+    as :func:`wavemesh.encode` writes it instead of a 9/7 one (integer samples whose
+    tiles' detail says it may fit: one task per tile estimates it); ``None`` when it is
+    not tried or does not fit."""
+    if not np.issubdtype(array.dtype, np.integer):
+        return None
+    dask, _ = _modules()
+    tile_width, tile_height, _ = grid
+    height, width = array.shape
+    blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
+    count = len(_sides(height, tile_height)) * len(_sides(width, tile_width))
+    estimate = dask.delayed(_tile_estimate)
+    tasks = [
+        estimate(blocks[_coded_window(k, grid, array.shape)], place["nodata"])
+        for k in range(count)
+    ]
+    total = sum(dask.compute(*tasks))
+    budget = _wavemesh.lossless_budget(total, width=width, height=height, bpp=bpp)
+    if budget is None:
+        return None
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    handle, trial = tempfile.mkstemp(prefix=".wavemesh-", suffix=".ezw", dir=folder)
+    os.close(handle)
+    try:
+        written = to_ezw(array, trial, **place)
+        if written > budget:
+            return None
+        os.replace(trial, os.fspath(path))
+        return written
+    finally:
+        if os.path.exists(trial):
+            os.remove(trial)
+
+
+def _tile_estimate(block: np.ndarray, nodata):
+    """One tile's lossless estimate, in a task (see :func:`_lossless_if_it_fits`)."""
+    return _wavemesh.tile_lossless_estimate(wavemesh._native_2d(block), nodata=nodata)
+
+
 def _recoder(array, grid: Tuple[int, int, int], nodata, quality: dict):
     """``recode(k, cap)`` for ``write_tiled``: tile ``k`` coded again up to ``cap`` bytes
     (a tile its first cap starved under a ``bpp`` budget), its samples computed again."""
@@ -183,7 +224,9 @@ def to_ezw(
     holds the coded tiles (about the file's size, or four times a ``bpp`` budget) until
     it writes them. A masked array's voids are filled with ``nodata`` (else NaN or the
     type's extreme, as :func:`wavemesh.encode` does). An array no larger than ``tile``
-    a side is one stream, coded in one task.
+    a side is one stream, coded in one task. Under ``bpp`` an integer array whose
+    lossless file may fit the budget (one task per tile estimates it, as ``encode``
+    does) is first coded losslessly, and that file kept when it fits.
     """
     array, nodata = _filled(_checked_array(array), nodata)
     tile = _tile_size(tile)
@@ -197,6 +240,11 @@ def to_ezw(
         )
         wavemesh._write_atomic(path, data)
         return len(data)
+    if bpp is not None and (wavelet, max_error, precision) == (None, None, None):
+        place = dict(tile=tile, nodata=nodata, transform=transform, crs=crs)
+        written = _lossless_if_it_fits(array, path, grid, bpp, place)
+        if written is not None:
+            return written
     # Every tile codes with the wavelet the single-machine encoder settles on the
     # raster's centre.
     x, y, w, h = _wavemesh.wavelet_sample(width, height)

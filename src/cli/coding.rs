@@ -29,7 +29,8 @@ pub struct EncodeArgs {
     /// Output .ezw file.
     #[arg(short, long)]
     pub(super) output: PathBuf,
-    /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53.
+    /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53
+    /// (integer samples: the lossless file instead when it fits, unless --wavelet 97).
     #[arg(long, conflicts_with_all = ["max_error", "precision"])]
     bpp: Option<f64>,
     /// Keep every valid sample within E data units of the original (the smaller of a
@@ -302,6 +303,13 @@ pub(super) fn print_encode_report(
             seconds,
             report.encode_msamples_per_second
         );
+        let default_97 =
+            args.wavelet.is_none() && args.max_error.is_none() && args.precision.is_none();
+        if args.bpp.is_some() && default_97 && header.wavelet.is_reversible() {
+            println!(
+                "  the lossless file fits the budget: written instead of a 9/7 one (--wavelet 97 forces that)"
+            );
+        }
         if let Some(v) = &report.verified {
             println!(
                 "  verified: decoded and checked before writing ({})",

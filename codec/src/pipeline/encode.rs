@@ -7,10 +7,10 @@ use crate::error::CodecError;
 use crate::ezw::{self, CoefficientLayout, EncodedPayload};
 use crate::mask::encode_mask;
 use crate::progress::{self, Stage};
-use crate::quantize::{self, prepare_97, prepare_integer, Prepared, VoidCoefficients};
+use crate::quantize::{self, prepare_97, prepare_integer, FinestStep, Prepared, VoidCoefficients};
 use crate::raster::{Raster, SampleType, Samples};
 use crate::residual::{encode_residuals, exponents, LengthContext};
-use crate::tiles::TileGrid;
+use crate::tiles::{lossless_may_fit, TileDetail, TileGrid, Window};
 use crate::wavelet::{self, ShiftRule, Wavelet};
 
 use super::options::{EncodeOptions, Quality};
@@ -46,6 +46,9 @@ pub struct Encoded {
 /// A raster with a side longer than `options.tile_size` becomes a tiled file (see
 /// [`crate::tiles`]).
 pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, CodecError> {
+    if let Some(exact) = lossless_within_budget(raster, options)? {
+        return Ok(exact);
+    }
     if let Some(side) = options.code_block {
         if side == 0 || !side.is_multiple_of(64) {
             return Err(CodecError::InvalidParameters(format!(
@@ -84,6 +87,41 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
         }
         _ => Ok(near_lossless),
     }
+}
+
+/// The lossless file of `raster`, when `options` let a budget encode write it instead of
+/// a 9/7 one ([`EncodeOptions::lossless_alternative`]), the samples are integers, their
+/// detail (per tile, as a streaming encode reads it) says the file may fit and it does.
+fn lossless_within_budget(
+    raster: &Raster,
+    options: &EncodeOptions,
+) -> Result<Option<Encoded>, CodecError> {
+    let (Some(lossless), Some(budget)) = (options.lossless_alternative(), options.budget_bytes)
+    else {
+        return Ok(None);
+    };
+    if !raster.sample_type().is_integer() {
+        return Ok(None);
+    }
+    check_dimensions(raster)?;
+    let (width, height) = (raster.width, raster.height);
+    let grid = options
+        .tile_size
+        .and_then(|t| TileGrid::balanced(width, height, t as usize));
+    let windows = match grid {
+        Some(grid) => (0..grid.count()).map(|k| grid.coded(k)).collect(),
+        None => vec![Window::whole(width, height)],
+    };
+    let estimate: f64 = windows
+        .iter()
+        .map(|w| TileDetail::of(raster, w).lossless_estimate())
+        .sum();
+    if !lossless_may_fit(estimate, budget) {
+        return Ok(None);
+    }
+    Ok(encode(raster, &lossless)
+        .ok()
+        .filter(|exact| exact.bytes.len() as u64 <= budget))
 }
 
 /// The sections of an encoded file before framing.
@@ -150,7 +188,12 @@ fn prepare(
                     "the 9/7 wavelet is lossy: error bounds need the 5/3 wavelet".into(),
                 ));
             }
-            let prepared = prepare_97(raster, mask, norms, VoidCoefficients::Zeroed);
+            let prepared = prepare_97(
+                raster,
+                mask,
+                norms,
+                (VoidCoefficients::Zeroed, FinestStep::ForTheSamples),
+            );
             // Infinities, or finite samples whose transform overflows f32, leave no finite
             // mean or step for the header (the decoder would refuse the stream).
             if !(prepared.mapping.offset.is_finite() && prepared.coefficient_step.is_finite()) {

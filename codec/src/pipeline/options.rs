@@ -53,6 +53,12 @@ pub struct EncodeOptions {
     /// [`EncodeOptions::wavelet_chosen_for`]): set by [`EncodeOptions::new`] for
     /// lossless and error-bounded coding, cleared by [`EncodeOptions::with_wavelet`].
     pub adaptive_wavelet: bool,
+    /// Whether a budget encode of an integer raster writes the lossless file (13/11 or
+    /// 5/3) instead of the 9/7 one when the lossless file fits the budget: exact, and
+    /// smaller than the 9/7 file of the same budget (see
+    /// [`EncodeOptions::lossless_alternative`]). Set by [`EncodeOptions::new`] when it
+    /// picks the 9/7 for a budget, cleared by [`EncodeOptions::with_wavelet`].
+    pub lossless_when_it_fits: bool,
     /// Decomposition levels (`None`: until the coarsest band is at most 8 samples wide).
     pub levels: Option<u32>,
     /// Target quality of the complete stream.
@@ -87,6 +93,7 @@ impl EncodeOptions {
         EncodeOptions {
             wavelet,
             adaptive_wavelet: wavelet.is_reversible(),
+            lossless_when_it_fits: wavelet == Wavelet::Cdf97,
             levels: None,
             quality,
             budget_bytes,
@@ -125,7 +132,28 @@ impl EncodeOptions {
     pub fn with_wavelet(mut self, wavelet: Wavelet) -> EncodeOptions {
         self.wavelet = wavelet;
         self.adaptive_wavelet = false;
+        self.lossless_when_it_fits = false;
         self
+    }
+
+    /// The options of the lossless file a budget encode writes instead of its 9/7 file
+    /// when that fits the budget ([`lossless_when_it_fits`](Self::lossless_when_it_fits)):
+    /// `None` unless these options ask for a 9/7 file of a byte budget, without code
+    /// blocks, and allow it. The encoder tries it only where the raster's detail says
+    /// it may fit ([`crate::tiles::lossless_may_fit`]), and only for integer rasters.
+    pub fn lossless_alternative(&self) -> Option<EncodeOptions> {
+        let asked = self.lossless_when_it_fits
+            && self.wavelet == Wavelet::Cdf97
+            && self.quality == Quality::Lossless
+            && self.budget_bytes.is_some()
+            && self.code_block.is_none();
+        asked.then(|| EncodeOptions {
+            budget_bytes: None,
+            ..EncodeOptions::lossless()
+                .with_levels(self.levels)
+                .with_tile_size(self.tile_size)
+                .with_threads(self.threads)
+        })
     }
 
     /// These options with the wavelet settled for `raster`: with

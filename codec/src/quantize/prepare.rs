@@ -49,6 +49,19 @@ pub(crate) enum VoidCoefficients {
     Filled,
 }
 
+/// How fine the last plane of a 9/7 stream is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FinestStep {
+    /// No finer than integer samples need ([`INTEGER_FINEST_STEP`]): what the encoder
+    /// codes.
+    ForTheSamples,
+    /// The largest coefficient over 2^30 whatever the samples: what coder 3's prior
+    /// tables were trained on (they are part of the format, so their training stays as
+    /// it was).
+    #[cfg(feature = "research")]
+    AsTrained,
+}
+
 /// The reversible path (5/3 or 13/11, `wavelet`): samples to the integer plane `quality`
 /// asks for, voids filled, transformed, the subbands shifted by `rule`.
 pub(crate) fn prepare_integer(
@@ -188,7 +201,7 @@ pub(crate) fn prepare_97(
     raster: &Raster,
     mask: &[bool],
     norms: &[f64],
-    voids: VoidCoefficients,
+    (voids, finest): (VoidCoefficients, FinestStep),
 ) -> Prepared {
     let (width, height) = (raster.width, raster.height);
     let (mean, mut data) = centred_samples(raster, mask);
@@ -206,7 +219,10 @@ pub(crate) fn prepare_97(
         .iter()
         .map(|&n| scale_from_u16(scale_to_u16(n)))
         .collect();
-    let step = coefficient_step(&data, width, &subbands, &norms);
+    let mut step = coefficient_step(&data, width, &subbands, &norms);
+    if finest == FinestStep::ForTheSamples && raster.sample_type().is_integer() {
+        step = integer_finest_step(step);
+    }
     let mut coefficients = vec![0i32; data.len()];
     for (sub, &norm) in subbands.iter().zip(&norms) {
         let scale = norm / step;
@@ -284,6 +300,25 @@ fn coefficient_step(data: &[f32], width: usize, subbands: &[Subband], norms: &[f
         1.0
     }
 }
+
+/// The finest 9/7 step an integer raster needs: `step` doubled while it stays at most
+/// [`INTEGER_FINEST_STEP`]. The planes below that only refine errors that the rounding to
+/// whole units removes, so they would be bytes a budget spends for nothing; doubling
+/// drops them exactly (every coefficient is the finer one shifted right), and leaves every
+/// plane above as it was.
+fn integer_finest_step(mut step: f64) -> f64 {
+    while step * 2.0 <= INTEGER_FINEST_STEP {
+        step *= 2.0;
+    }
+    step
+}
+
+/// The coarsest interval of the last 9/7 plane of an integer raster, in data units. Its
+/// error (roughly a Gaussian of σ = step / √12 ≈ 0.07) stays about 7 σ inside the ±½
+/// that rounding to the nearest unit forgives: the complete streams of the six integer
+/// DEMs of the development set decode every sample exactly (with ½, four of six are off
+/// by one somewhere).
+const INTEGER_FINEST_STEP: f64 = 0.25;
 
 /// The largest `|c · norm|` over `values` (0 when there are none; NaNs are passed over).
 /// Four running maxima: a maximum of magnitudes does not depend on the order it is taken

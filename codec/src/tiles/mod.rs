@@ -20,7 +20,7 @@ pub use allocate::allocate;
 pub(crate) use allocate::allocate_points;
 pub(crate) use blocked::encode as encode_blocked;
 pub use blocked::{blocked_head, cut_units, unit_grid, EncodedUnit};
-pub use caps::{area_cap, budget_caps, TileDetail};
+pub use caps::{area_cap, budget_caps, lossless_may_fit, TileDetail};
 pub use decode::decode_tile;
 pub use index::{read_header, TileEntry, TiledLayout};
 pub(crate) use stream::cut_tile;
@@ -57,6 +57,16 @@ pub struct Window {
 }
 
 impl Window {
+    /// Every sample of a `width × height` raster.
+    pub fn whole(width: usize, height: usize) -> Window {
+        Window {
+            x: 0,
+            y: 0,
+            width,
+            height,
+        }
+    }
+
     /// The part of this window inside `other`, if any.
     pub fn intersection(&self, other: &Window) -> Option<Window> {
         let x = self.x.max(other.x);

@@ -53,14 +53,15 @@ impl EncodedTile {
 }
 
 /// Encodes one tile (a raster cut from the whole, without georeferencing) as `options`
-/// say, ignoring their tile size, byte budget and threads: completely, or up to `cap`
-/// bytes.
+/// say, ignoring their tile size, byte budget, threads and
+/// [`lossless_when_it_fits`](EncodeOptions::lossless_when_it_fits): completely, or up
+/// to `cap` bytes.
 pub fn encode_tile(
     part: &Raster,
     options: &EncodeOptions,
     cap: Option<u64>,
 ) -> Result<EncodedTile, CodecError> {
-    let single = options
+    let mut single = options
         .clone()
         .with_tile_size(None)
         .with_budget_bytes(cap)
@@ -70,6 +71,8 @@ pub fn encode_tile(
                 .levels
                 .map(|l| l.min(wavelet::max_levels(part.width, part.height))),
         );
+    // Whether the lossless file replaces the 9/7 one is the whole file's choice.
+    single.lossless_when_it_fits = false;
     let encoded = crate::progress::observe(|_| {}, || crate::pipeline::encode(part, &single))?;
     let any_valid = (0..part.len()).any(|i| part.is_valid(i));
     let passes = encoded
