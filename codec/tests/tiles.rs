@@ -373,8 +373,9 @@ fn every_tile_of_a_max_error_file_has_a_ladder_start() {
 
 /// A budget's cut does not depend on how far the encoder first coded each tile: tiles
 /// coded up to the encoder's caps by detail, up to half an even share and 4 KiB each
-/// (the encoder's least cap; coded again where the cut comes near a cap), and whole cut
-/// to the same bytes, at rates where the caps stop every tile and where they stop none.
+/// (far below the detailed tiles' caps by detail, so those are coded again where the cut
+/// comes near their cap), and whole cut to the same bytes, at rates where the caps stop
+/// every tile and where they stop none.
 #[test]
 fn a_cut_does_not_depend_on_the_tiles_caps() {
     use wavemesh_codec::tiles::{budget_caps, cut_to_budget, encode_tile, RasterInfo, TileDetail};
