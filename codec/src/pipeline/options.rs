@@ -81,7 +81,9 @@ pub struct EncodeOptions {
 }
 
 impl EncodeOptions {
-    /// The defaults: 9/7 when only a byte budget is given, 13/11 for lossless and
+    /// The defaults: 9/7 when only a byte budget is given (or the lossless file, for
+    /// integer samples whose lossless file fits: see
+    /// [`lossless_when_it_fits`](Self::lossless_when_it_fits)), 13/11 for lossless and
     /// error-bounded coding (or the 5/3, where the raster codes smaller with it: see
     /// [`adaptive_wavelet`](Self::adaptive_wavelet)); tiles of [`DEFAULT_TILE`] a side;
     /// every core.
@@ -115,7 +117,8 @@ impl EncodeOptions {
     }
 
     /// A 9/7 stream cut at `bytes` bytes (a rate of `8 · bytes / samples` bits per
-    /// sample), with the defaults of [`EncodeOptions::new`].
+    /// sample), or the lossless file of integer samples when that fits, with the
+    /// defaults of [`EncodeOptions::new`].
     pub fn budget(bytes: u64) -> EncodeOptions {
         EncodeOptions::new(Quality::Lossless, Some(bytes))
     }
