@@ -527,19 +527,12 @@ fn a_budget_the_lossless_file_fits_writes_it_streamed_or_not() {
     let dir = scratch("cli-tiles");
     let tif = synth(dir.path(), 700, 600);
     let lossless = dir.path().join("l.ezw");
-    json(&[
-        "encode",
-        s(&tif),
-        "-o",
-        s(&lossless),
-        "--tile",
-        "256",
-        "--json",
-    ]);
+    let tiled = ["encode", s(&tif), "--tile", "256"];
+    json(&[&tiled[..], &["-o", s(&lossless), "--json"]].concat());
     let bytes = std::fs::read(&lossless).unwrap();
     let bpp = format!("{:.3}", 1.02 * bytes.len() as f64 * 8.0 / (700.0 * 600.0));
     let (streamed, memory) = (dir.path().join("s.ezw"), dir.path().join("m.ezw"));
-    let args = ["encode", s(&tif), "--tile", "256", "--bpp", &bpp];
+    let args = [&tiled[..], &["--bpp", &bpp]].concat();
     let report = json(&[&args[..], &["-o", s(&streamed), "--json"]].concat());
     assert_eq!(report["wavelet"], "13/11");
     assert_eq!(std::fs::read(&streamed).unwrap(), bytes);

@@ -123,21 +123,23 @@ def _coded_window(k: int, grid: Tuple[int, int, int], shape: Tuple[int, int]):
     )
 
 
-def _coded_tiles(array, grid: Tuple[int, int, int], nodata, quality: dict) -> list:
-    """Every tile's ``(stream, summary)`` in grid order, each coded in its own task from
-    ``array`` rechunked to the grid (``grid``: tile width, height and overlap), each task
-    given its tile and the overlap around it."""
+def _per_tile(array, grid: Tuple[int, int, int], task, *args) -> list:
+    """``task(samples, *args)`` of every tile, in grid order, each in its own task on
+    ``array`` rechunked to the grid (``grid``: tile width, height and overlap), given
+    the samples its stream codes: the tile and the overlap around it."""
     dask, _ = _modules()
     tile_width, tile_height, _ = grid
     height, width = array.shape
     blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
     count = len(_sides(height, tile_height)) * len(_sides(width, tile_width))
-    encode = dask.delayed(_encode_block)
-    tasks = [
-        encode(blocks[_coded_window(k, grid, array.shape)], (height, width), nodata, quality)
-        for k in range(count)
-    ]
+    run = dask.delayed(task)
+    tasks = [run(blocks[_coded_window(k, grid, array.shape)], *args) for k in range(count)]
     return list(dask.compute(*tasks))
+
+
+def _coded_tiles(array, grid: Tuple[int, int, int], nodata, quality: dict) -> list:
+    """Every tile's ``(stream, summary)`` in grid order, each coded in its own task."""
+    return _per_tile(array, grid, _encode_block, array.shape, nodata, quality)
 
 
 def _lossless_if_it_fits(array, path, grid: Tuple[int, int, int], bpp: float, place: dict):
@@ -147,17 +149,8 @@ def _lossless_if_it_fits(array, path, grid: Tuple[int, int, int], bpp: float, pl
     not tried or does not fit."""
     if not np.issubdtype(array.dtype, np.integer):
         return None
-    dask, _ = _modules()
-    tile_width, tile_height, _ = grid
+    total = sum(_per_tile(array, grid, _tile_estimate, place["nodata"]))
     height, width = array.shape
-    blocks = array.rechunk((_sides(height, tile_height), _sides(width, tile_width)))
-    count = len(_sides(height, tile_height)) * len(_sides(width, tile_width))
-    estimate = dask.delayed(_tile_estimate)
-    tasks = [
-        estimate(blocks[_coded_window(k, grid, array.shape)], place["nodata"])
-        for k in range(count)
-    ]
-    total = sum(dask.compute(*tasks))
     budget = _wavemesh.lossless_budget(total, width=width, height=height, bpp=bpp)
     if budget is None:
         return None
