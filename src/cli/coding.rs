@@ -593,7 +593,7 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
         print_json(&report);
     } else {
         println!(
-            "{} -> {}: {} of {} bytes ({:.4} bpp), {}/{} passes{}, {:.3} s ({:.1} MS/s)",
+            "{} -> {}: {} of {} bytes ({:.4} bpp), {}/{} passes{}{}, {:.3} s ({:.1} MS/s)",
             args.input.display(),
             args.output.display(),
             report.bytes_used,
@@ -603,6 +603,11 @@ pub fn decode(args: &DecodeArgs) -> Result<(), CliError> {
             report
                 .passes_total
                 .map_or("?".to_string(), |total| total.to_string()),
+            if report.tiles.is_some() {
+                " (the fewest of any tile)"
+            } else {
+                ""
+            },
             if report.complete { ", complete" } else { "" },
             seconds,
             report.decode_msamples_per_second
