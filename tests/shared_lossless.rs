@@ -90,14 +90,25 @@ fn integer_dems_complete_97_streams_decode_exactly() {
         let options = EncodeOptions::new(Quality::Lossless, Some(budget))
             .with_wavelet(wavemesh_codec::Wavelet::Cdf97);
         let encoded = encode(&raster, &options).unwrap();
-        assert!((encoded.bytes.len() as u64) < budget, "{}", dataset.name);
         let decoded = decode(&encoded.bytes, &DecodeOptions::default()).unwrap();
         assert_eq!(decoded.raster.samples, raster.samples, "{}", dataset.name);
+        // Ending at a quarter unit, it stays within twice the lossless file (1.3–1.9× on
+        // the set; coded to 30 bits, srtm3_n57e011's was 7.9×).
+        let lossless = encode(&raster, &EncodeOptions::lossless())
+            .unwrap()
+            .bytes
+            .len();
+        let ratio = encoded.bytes.len() as f64 / lossless as f64;
         eprintln!(
-            "{}: complete 9/7 stream {} bytes ({:.3} bpp), exact",
+            "{}: complete 9/7 stream {} bytes ({:.3} bpp), exact, {ratio:.2}× the lossless file",
             dataset.name,
             encoded.bytes.len(),
             8.0 * encoded.bytes.len() as f64 / raster.len() as f64
+        );
+        assert!(
+            ratio < 2.0,
+            "{}: {ratio:.2}× the lossless file",
+            dataset.name
         );
     }
 }

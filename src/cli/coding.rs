@@ -303,9 +303,8 @@ pub(super) fn print_encode_report(
             seconds,
             report.encode_msamples_per_second
         );
-        let default_97 =
-            args.wavelet.is_none() && args.max_error.is_none() && args.precision.is_none();
-        if args.bpp.is_some() && default_97 && header.wavelet.is_reversible() {
+        // (--bpp excludes --max-error and --precision.)
+        if args.bpp.is_some() && args.wavelet.is_none() && header.wavelet.is_reversible() {
             println!(
                 "  the lossless file fits the budget: written instead of a 9/7 one (--wavelet 97 forces that)"
             );
