@@ -295,9 +295,9 @@ fn tile_details(
 }
 
 /// The lossless file a budget encode writes instead of its 9/7 one, as an in-memory
-/// encode does ([`EncodeOptions::lossless_alternative`]): tried when the samples are
-/// integers and the tiles' `details` say it may fit ([`lossless_may_fit`]), coded to a
-/// temporary file, and copied to `output` when it fits the budget.
+/// encode does ([`EncodeOptions::lossless_alternative`]): tried when the tiles'
+/// `details` say it may fit ([`lossless_may_fit`]), coded to a temporary file, and
+/// copied to `output` when it fits the budget.
 fn lossless_if_it_fits(
     (bands, info, grid, block_width): (&mut RowBands, &RasterInfo, &TileGrid, usize),
     details: &[TileDetail],
@@ -310,7 +310,7 @@ fn lossless_if_it_fits(
         return Ok(None);
     };
     let estimate: f64 = details.iter().map(TileDetail::lossless_estimate).sum();
-    if !(info.sample_type.is_integer() && lossless_may_fit(estimate, budget)) {
+    if !lossless_may_fit(estimate, budget) {
         return Ok(None);
     }
     let trial = tempfile::NamedTempFile::new()?.into_temp_path();

@@ -526,27 +526,42 @@ fn streaming_and_in_memory_encodes_settle_on_the_same_wavelet() {
 fn a_budget_the_lossless_file_fits_writes_it_streamed_or_not() {
     let dir = scratch("cli-tiles");
     let tif = synth(dir.path(), 700, 600);
-    let lossless = dir.path().join("l.ezw");
-    let tiled = ["encode", s(&tif), "--tile", "256"];
-    json(&[&tiled[..], &["-o", s(&lossless), "--json"]].concat());
-    let bytes = std::fs::read(&lossless).unwrap();
-    let bpp = format!("{:.3}", 1.02 * bytes.len() as f64 * 8.0 / (700.0 * 600.0));
-    let (streamed, memory) = (dir.path().join("s.ezw"), dir.path().join("m.ezw"));
-    let args = [&tiled[..], &["--bpp", &bpp]].concat();
-    let report = json(&[&args[..], &["-o", s(&streamed), "--json"]].concat());
-    assert_eq!(report["wavelet"], "13/11");
-    assert_eq!(std::fs::read(&streamed).unwrap(), bytes);
-    json(&[&args[..], &["-o", s(&memory), "--verify", "--json"]].concat());
-    assert_eq!(std::fs::read(&memory).unwrap(), bytes);
-    let text = stdout(&[&args[..], &["-o", s(&streamed)]].concat());
-    assert!(text.contains("the lossless file fits the budget"), "{text}");
-    // Asked for, the 9/7 it is.
-    let forced = json(
-        &[
-            &args[..],
-            &["-o", s(&streamed), "--wavelet", "97", "--json"],
-        ]
-        .concat(),
-    );
-    assert_eq!(forced["wavelet"], "9/7");
+    // The same heights in feet, as floats off any grid, with a NaN void.
+    let feet = dir.path().join("feet.tif");
+    let metres = read_dem(&tif, &ReadOptions::default()).unwrap();
+    let heights: Vec<f32> = (0..metres.len())
+        .map(|i| match (i % 700, i / 700) {
+            (100..300, 50..200) => f32::NAN,
+            _ => metres.samples.get_f64(i) as f32 * 3.28084,
+        })
+        .collect();
+    let mut floats =
+        wavemesh_codec::Raster::new(700, 600, wavemesh_codec::Samples::F32(heights)).unwrap();
+    floats.nodata = Some(f64::NAN);
+    wavemesh::dem::write_dem(&feet, &floats).unwrap();
+    for tif in [&tif, &feet] {
+        let lossless = dir.path().join("l.ezw");
+        let tiled = ["encode", s(tif), "--tile", "256"];
+        let exact = json(&[&tiled[..], &["-o", s(&lossless), "--json"]].concat());
+        let bytes = std::fs::read(&lossless).unwrap();
+        let bpp = format!("{:.3}", 1.02 * bytes.len() as f64 * 8.0 / (700.0 * 600.0));
+        let (streamed, memory) = (dir.path().join("s.ezw"), dir.path().join("m.ezw"));
+        let args = [&tiled[..], &["--bpp", &bpp]].concat();
+        let report = json(&[&args[..], &["-o", s(&streamed), "--json"]].concat());
+        assert_eq!(report["wavelet"], exact["wavelet"], "{}", tif.display());
+        assert_eq!(std::fs::read(&streamed).unwrap(), bytes);
+        json(&[&args[..], &["-o", s(&memory), "--verify", "--json"]].concat());
+        assert_eq!(std::fs::read(&memory).unwrap(), bytes);
+        let text = stdout(&[&args[..], &["-o", s(&streamed)]].concat());
+        assert!(text.contains("the lossless file fits the budget"), "{text}");
+        // Asked for, the 9/7 it is.
+        let forced = json(
+            &[
+                &args[..],
+                &["-o", s(&streamed), "--wavelet", "97", "--json"],
+            ]
+            .concat(),
+        );
+        assert_eq!(forced["wavelet"], "9/7");
+    }
 }

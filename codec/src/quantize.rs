@@ -157,7 +157,7 @@ pub fn check_finite(values: &[f32], mask: &[bool], width: usize) -> Result<(), C
 }
 
 /// Grids tried for exact float data, coarsest first.
-const FLOAT_GRIDS: [f64; 14] = [
+pub(crate) const FLOAT_GRIDS: [f64; 14] = [
     1.0, 0.5, 0.25, 0.2, 0.125, 0.1, 0.0625, 0.05, 0.03125, 0.025, 0.02, 0.01, 0.005, 0.001,
 ];
 
@@ -173,12 +173,20 @@ pub fn detect_float_grid(values: &[f32], mask: &[bool]) -> Option<f64> {
         .fold(0.0, f64::max);
     FLOAT_GRIDS.into_iter().find(|&step| {
         max_abs / step < MAX_INTEGER_MAGNITUDE
-            && values.iter().zip(mask).filter(|(_, &m)| m).all(|(&v, _)| {
-                let mapping = ValueMapping { offset: 0.0, step };
-                let back = mapping.value((v as f64 / step).round()) as f32;
-                back.to_bits() == v.to_bits()
-            })
+            && values
+                .iter()
+                .zip(mask)
+                .filter(|(_, &m)| m)
+                .all(|(&v, _)| on_float_grid(v, step))
     })
+}
+
+/// Whether `value`'s reconstruction on the grid of `step` (as the decoder computes it,
+/// narrowed to `f32`) has its bits.
+pub(crate) fn on_float_grid(value: f32, step: f64) -> bool {
+    let mapping = ValueMapping { offset: 0.0, step };
+    let back = mapping.value((value as f64 / step).round()) as f32;
+    back.to_bits() == value.to_bits()
 }
 
 /// Quantises a float raster onto `step` (`q = round(v / step)`).

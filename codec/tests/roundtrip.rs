@@ -272,7 +272,7 @@ fn a_budget_the_lossless_file_fits_gets_the_lossless_file_unless_97_is_asked_for
         encode(&raster, &forced).unwrap().header.wavelet,
         Wavelet::Cdf97
     );
-    // Below the lossless size, and for floats, the 9/7 as before.
+    // Below the lossless size, the 9/7 as before.
     let short = lossless.bytes.len() as u64 - 100;
     let cut = encode(&raster, &EncodeOptions::budget(short)).unwrap();
     assert_eq!(cut.header.wavelet, Wavelet::Cdf97);
@@ -302,15 +302,17 @@ fn a_budget_the_lossless_file_fits_gets_the_lossless_file_unless_97_is_asked_for
         default.unwrap().bytes == forced.unwrap().bytes,
         "a tile chose alone"
     );
+    // Floats off any grid too (their residuals counted in the estimate).
     let floats = terrain(96, 80, SampleType::F32, 23, 300.0);
-    let budget = 8 * floats.len() as u64;
-    assert_eq!(
-        encode(&floats, &EncodeOptions::budget(budget))
-            .unwrap()
-            .header
-            .wavelet,
-        Wavelet::Cdf97
-    );
+    let exact = encode(&floats, &EncodeOptions::lossless()).unwrap();
+    assert!(exact.header.residual_len > 0, "the floats lie on a grid");
+    for (budget, lossless) in [
+        (exact.bytes.len() + 100, true),
+        (exact.bytes.len() - 100, false),
+    ] {
+        let coded = encode(&floats, &EncodeOptions::budget(budget as u64)).unwrap();
+        assert_eq!(coded.bytes == exact.bytes, lossless, "budget {budget}");
+    }
 }
 
 #[test]

@@ -246,7 +246,7 @@ pub fn tile_lossless_estimate(
     Ok(py.detach(|| TileDetail::of(&part, &whole).lossless_estimate()))
 }
 
-/// The byte budget of `bpp` on a `width × height` integer raster when `encode` tries
+/// The byte budget of `bpp` on a `width × height` raster when `encode` tries
 /// its lossless file first (its tiles' [`tile_lossless_estimate`]s summing to
 /// `estimate`), else `None`: the lossless file replaces the 9/7 one when it is at most
 /// that many bytes.

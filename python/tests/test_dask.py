@@ -69,7 +69,7 @@ def test_a_tile_starved_by_its_first_cap_is_coded_again_as_encode_does(tmp_path)
     assert np.abs(rough.astype(np.int32) - dem[:128, :128]).max() < 200
 
 
-@pytest.mark.parametrize("dtype", [np.int16, np.uint8])
+@pytest.mark.parametrize("dtype", [np.int16, np.uint8, np.float32])
 def test_a_budget_the_lossless_file_fits_gets_it_as_encode_does(tmp_path, dtype):
     dem = terrain(dtype, (150, 230))
     lossless = wavemesh.encode(dem, tile=64)

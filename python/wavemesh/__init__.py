@@ -211,8 +211,8 @@ def encode(
     """Encodes a 2-D array into ``.ezw`` bytes.
 
     Lossless (bit-exact, floats included) by default; ``bpp`` cuts the stream at that
-    many bits per sample (lossy 9/7 unless ``wavelet`` is ``"53"`` or ``"1311"``; of
-    integers, the lossless file instead when it fits, unless ``wavelet`` is ``"97"``);
+    many bits per sample (lossy 9/7 unless ``wavelet`` is ``"53"`` or ``"1311"``; the
+    lossless file instead when it fits, unless ``wavelet`` is ``"97"``);
     ``max_error`` keeps every valid sample within that many data units; ``precision``
     quantises floats to that step. ``wavelet`` is ``"97"``, ``"53"`` or ``"1311"``
     (default: 9/7 with ``bpp``, else the reversible 13/11 or 5/3, whichever the array's

@@ -144,11 +144,9 @@ def _coded_tiles(array, grid: Tuple[int, int, int], nodata, quality: dict) -> li
 
 def _lossless_if_it_fits(array, path, grid: Tuple[int, int, int], bpp: float, place: dict):
     """The bytes of the lossless file written to ``path`` when it fits a ``bpp`` budget,
-    as :func:`wavemesh.encode` writes it instead of a 9/7 one (integer samples whose
-    tiles' detail says it may fit: one task per tile estimates it); ``None`` when it is
-    not tried or does not fit."""
-    if not np.issubdtype(array.dtype, np.integer):
-        return None
+    as :func:`wavemesh.encode` writes it instead of a 9/7 one (when the tiles' detail
+    says it may fit: one task per tile estimates it); ``None`` when it is not tried or
+    does not fit."""
     total = sum(_per_tile(array, grid, _tile_estimate, place["nodata"]))
     height, width = array.shape
     budget = _wavemesh.lossless_budget(total, width=width, height=height, bpp=bpp)
@@ -217,8 +215,8 @@ def to_ezw(
     holds the coded tiles (about the file's size, or four times a ``bpp`` budget) until
     it writes them. A masked array's voids are filled with ``nodata`` (else NaN or the
     type's extreme, as :func:`wavemesh.encode` does). An array no larger than ``tile``
-    a side is one stream, coded in one task. Under ``bpp`` an integer array whose
-    lossless file may fit the budget (one task per tile estimates it, as ``encode``
+    a side is one stream, coded in one task. Under ``bpp`` an array whose lossless
+    file may fit the budget (one task per tile estimates it, as ``encode``
     does) is first coded losslessly, and that file kept when it fits.
     """
     array, nodata = _filled(_checked_array(array), nodata)

@@ -90,8 +90,8 @@ pub fn encode(raster: &Raster, options: &EncodeOptions) -> Result<Encoded, Codec
 }
 
 /// The lossless file of `raster`, when `options` let a budget encode write it instead of
-/// a 9/7 one ([`EncodeOptions::lossless_alternative`]), the samples are integers, their
-/// detail (per tile, as a streaming encode reads it) says the file may fit and it does.
+/// a 9/7 one ([`EncodeOptions::lossless_alternative`]), the samples' detail (per tile, as
+/// a streaming encode reads it) says the file may fit and it does.
 fn lossless_within_budget(
     raster: &Raster,
     options: &EncodeOptions,
@@ -100,9 +100,6 @@ fn lossless_within_budget(
     else {
         return Ok(None);
     };
-    if !raster.sample_type().is_integer() {
-        return Ok(None);
-    }
     check_dimensions(raster)?;
     let (width, height) = (raster.width, raster.height);
     let grid = options

@@ -53,7 +53,7 @@ pub struct EncodeOptions {
     /// [`EncodeOptions::wavelet_chosen_for`]): set by [`EncodeOptions::new`] for
     /// lossless and error-bounded coding, cleared by [`EncodeOptions::with_wavelet`].
     pub adaptive_wavelet: bool,
-    /// Whether a budget encode of an integer raster writes the lossless file (13/11 or
+    /// Whether a budget encode writes the lossless file (13/11 or
     /// 5/3) instead of the 9/7 one when the lossless file fits the budget: exact, and
     /// smaller than the 9/7 file of the same budget (see
     /// [`EncodeOptions::lossless_alternative`]). Set by [`EncodeOptions::new`] when it
@@ -82,7 +82,7 @@ pub struct EncodeOptions {
 
 impl EncodeOptions {
     /// The defaults: 9/7 when only a byte budget is given (or the lossless file, for
-    /// integer samples whose lossless file fits: see
+    /// samples whose lossless file fits: see
     /// [`lossless_when_it_fits`](Self::lossless_when_it_fits)), 13/11 for lossless and
     /// error-bounded coding (or the 5/3, where the raster codes smaller with it: see
     /// [`adaptive_wavelet`](Self::adaptive_wavelet)); tiles of [`DEFAULT_TILE`] a side;
@@ -117,7 +117,7 @@ impl EncodeOptions {
     }
 
     /// A 9/7 stream cut at `bytes` bytes (a rate of `8 · bytes / samples` bits per
-    /// sample), or the lossless file of integer samples when that fits, with the
+    /// sample), or the lossless file when that fits, with the
     /// defaults of [`EncodeOptions::new`].
     pub fn budget(bytes: u64) -> EncodeOptions {
         EncodeOptions::new(Quality::Lossless, Some(bytes))
@@ -143,7 +143,7 @@ impl EncodeOptions {
     /// when that fits the budget ([`lossless_when_it_fits`](Self::lossless_when_it_fits)):
     /// `None` unless these options ask for a 9/7 file of a byte budget, without code
     /// blocks, and allow it. The encoder tries it only where the raster's detail says
-    /// it may fit ([`crate::tiles::lossless_may_fit`]), and only for integer rasters.
+    /// it may fit ([`crate::tiles::lossless_may_fit`]).
     pub fn lossless_alternative(&self) -> Option<EncodeOptions> {
         let asked = self.lossless_when_it_fits
             && self.wavelet == Wavelet::Cdf97

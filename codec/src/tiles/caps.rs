@@ -5,6 +5,7 @@
 
 use crate::raster::{Raster, Samples};
 
+use super::float_detail::FloatDetail;
 use super::{TileGrid, Window};
 
 /// Histogram bins of ⌊log2 g⌋ for a sample's gradient g, from 2^-64 to 2^63.
@@ -26,13 +27,20 @@ const LOSSLESS_TRY: f64 = 1.5;
 
 /// A tile's samples counted by ⌊log2⌋ of their gradient |Δx| + |Δy| (to the valid left
 /// and upper neighbours inside the tile; zero gradients are not counted), on one row in
-/// [`TileDetail::ROW_STEP`]: what [`budget_caps`] shares a budget by.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TileDetail([u64; BINS]);
+/// [`TileDetail::ROW_STEP`]: what [`budget_caps`] shares a budget by. Float samples are
+/// counted too by what their lossless file's value step needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileDetail {
+    gradients: [u64; BINS],
+    floats: Option<FloatDetail>,
+}
 
 impl Default for TileDetail {
     fn default() -> Self {
-        TileDetail([0; BINS])
+        TileDetail {
+            gradients: [0; BINS],
+            floats: None,
+        }
     }
 }
 
@@ -72,26 +80,37 @@ impl TileDetail {
         for (&value, &up) in row.iter().zip(&above) {
             let gradient = distance(value, left) + distance(value, up);
             if gradient > 0.0 && gradient.is_finite() {
-                self.0[bin_of(gradient)] += 1;
+                self.gradients[bin_of(gradient)] += 1;
             }
             left = value;
         }
+        if matches!(raster.samples, Samples::F32(_)) {
+            let floats = self.floats.get_or_insert_with(FloatDetail::default);
+            for &value in row.iter().filter(|v| !v.is_nan()) {
+                floats.add(value as f32);
+            }
+        }
     }
 
-    /// The bytes of the tile's lossless stream, estimated at one bit a bit of gradient
-    /// above the unit (integer samples), the counted rows standing for all.
+    /// The bytes of the tile's lossless file, the counted rows standing for all: one
+    /// bit a bit of gradient above the value step (the unit for integer samples), and
+    /// for floats off any grid the bits of their exact residuals.
     pub fn lossless_estimate(&self) -> f64 {
-        self.bits_above(0) * TileDetail::ROW_STEP as f64 / 8.0
+        let (step, residual_bits) = self
+            .floats
+            .as_ref()
+            .map_or((1.0, 0.0), FloatDetail::step_and_residual_bits);
+        (self.bits_above(step.log2()) + residual_bits) * TileDetail::ROW_STEP as f64 / 8.0
     }
 
     /// Bits of the gradients at and above `plane` (a gradient in bin b has b − plane + 1).
-    fn bits_above(&self, plane: i64) -> f64 {
-        self.0
+    fn bits_above(&self, plane: f64) -> f64 {
+        self.gradients
             .iter()
             .enumerate()
             .map(|(bin, &count)| {
-                let above = bin as i64 - BIN_OF_ONE - plane + 1;
-                count as f64 * above.max(0) as f64
+                let above = (bin as i64 - BIN_OF_ONE) as f64 - plane + 1.0;
+                count as f64 * above.max(0.0)
             })
             .sum()
     }
@@ -137,7 +156,8 @@ fn cap_of(budget: u64, share: f64) -> u64 {
 /// reach `budget` bytes (the lowest plane if they never do); `None` when no tile has
 /// any detail.
 fn bits_at_budget(details: &[TileDetail], budget: u64) -> Option<Vec<f64>> {
-    let at = |plane: i64| -> Vec<f64> { details.iter().map(|d| d.bits_above(plane)).collect() };
+    let at =
+        |plane: i64| -> Vec<f64> { details.iter().map(|d| d.bits_above(plane as f64)).collect() };
     let target = 8.0 * budget as f64;
     let lowest = -BIN_OF_ONE;
     let plane = (lowest..BINS as i64 - BIN_OF_ONE)
@@ -264,11 +284,12 @@ mod tests {
     #[test]
     fn bits_count_the_planes_at_and_above_the_threshold() {
         let mut h = TileDetail::default();
-        h.0[bin_of(5.0)] = 3; // ⌊log2 5⌋ = 2
+        h.gradients[bin_of(5.0)] = 3; // ⌊log2 5⌋ = 2
         assert_eq!([0.75, 1.0, 7.99, 8.0].map(bin_of), [63, 64, 66, 67]);
-        assert_eq!(h.bits_above(0), 9.0);
-        assert_eq!(h.bits_above(2), 3.0);
-        assert_eq!(h.bits_above(3), 0.0);
-        assert_eq!(h.bits_above(-2), 15.0);
+        assert_eq!(h.bits_above(0.0), 9.0);
+        assert_eq!(h.bits_above(2.0), 3.0);
+        assert_eq!(h.bits_above(3.0), 0.0);
+        assert_eq!(h.bits_above(-2.0), 15.0);
+        assert_eq!(h.bits_above(0.5), 7.5);
     }
 }

@@ -9,6 +9,7 @@ mod allocate;
 mod blocked;
 mod blocks;
 mod caps;
+mod float_detail;
 mod index;
 mod stream;
 mod verify;
