@@ -545,6 +545,8 @@ fn cli_view_writes_a_crack_free_mesh_and_compares_the_rules() {
         "200,170,600",
         "--viewport",
         "640x360",
+        "--xy",
+        "pixel",
         "-o",
         mesh.to_str().unwrap(),
         "--render",
@@ -552,6 +554,7 @@ fn cli_view_writes_a_crack_free_mesh_and_compares_the_rules() {
         "--compare-rules",
         "--json",
     ]);
+    assert_eq!(report["xy_units"], "pixel");
     assert_eq!(report["cracks"], 0);
     let triangles = report["triangles"].as_u64().unwrap();
     assert!(triangles > 100, "{report}");
@@ -590,6 +593,8 @@ fn cli_flythrough_reports_every_frame() {
         "5",
         "--viewport",
         "640x360",
+        "--xy",
+        "pixel",
         "--render",
         frames.to_str().unwrap(),
         "--export-frames",
@@ -622,6 +627,54 @@ fn cli_flythrough_reports_every_frame() {
     assert_eq!(std::fs::read_dir(&meshes).unwrap().count(), 5);
     let orbit = json(&["flythrough", &stream, "--orbit", "--frames", "3", "--json"]);
     assert_eq!(orbit["frames"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn cli_views_of_a_geographic_dem_are_in_metres_by_default() {
+    // The sample is on EPSG:4326 (3 arc-seconds, 403 × 344 samples at 36.7° N): in the
+    // tangent plane at its centre a sample is about 74.5 m east and 92.6 m north.
+    let dir = tempfile::tempdir().unwrap();
+    let stream = sample_stream(dir.path());
+    let mesh = dir.path().join("view.obj");
+    let report = json(&[
+        "view",
+        &stream,
+        "--camera",
+        "-20000,-20000,4000",
+        "--look",
+        "0,0,300",
+        "-o",
+        mesh.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(report["xy_units"], "local_tangent");
+    assert_eq!(report["cracks"], 0);
+    let obj = std::fs::read_to_string(&mesh).unwrap();
+    assert!(obj.contains("frame local_tangent"), "{}", &obj[..300]);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for line in obj.lines().filter(|l| l.starts_with("v ")) {
+        let xy: Vec<f64> = line[2..]
+            .split_whitespace()
+            .take(2)
+            .map(|v| v.parse().unwrap())
+            .collect();
+        for k in 0..2 {
+            lo[k] = lo[k].min(xy[k]);
+            hi[k] = hi[k].max(xy[k]);
+        }
+    }
+    // The mesh covers the grid: 402 × 74.5 m by 343 × 92.6 m about the centre.
+    for (k, span) in [(0, 402.0 * 74.5), (1, 343.0 * 92.6)] {
+        assert!(
+            (hi[k] - lo[k] - span).abs() < 0.01 * span,
+            "{k}: {lo:?} {hi:?}"
+        );
+        assert!((hi[k] + lo[k]).abs() < 0.01 * span, "{k}: {lo:?} {hi:?}");
+    }
+    let orbit = json(&["flythrough", &stream, "--orbit", "--frames", "3", "--json"]);
+    assert_eq!(orbit["xy_units"], "local_tangent");
+    assert_eq!(orbit["total_cracks"], 0);
+    assert_eq!(orbit["all_match_rebuild"], true);
 }
 
 #[test]

@@ -38,10 +38,12 @@ pub enum RuleKind {
 /// x/y units of the view (camera included).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ViewXy {
-    /// x = column, y = row, z = stored value × z-scale (the default).
-    Pixel,
-    /// Through the geotransform (the DEM's CRS units; pixel units without one).
+    /// The DEM's CRS units through the geotransform; a geographic DEM in metres east and
+    /// north of its centre (the tangent plane there); pixel units without
+    /// georeferencing. z = stored value × z-scale.
     Geo,
+    /// x = column, y = row, z = stored value × z-scale.
+    Pixel,
 }
 
 /// Camera and rule options shared by `view` and `flythrough`.
@@ -65,8 +67,8 @@ pub struct ViewOptions {
     /// Area rule constant b (--rule area).
     #[arg(long, default_value_t = 0.0)]
     b: f64,
-    /// x/y units (the camera's too). Default pixel: geographic CRSs are not metric.
-    #[arg(long, value_enum, default_value = "pixel")]
+    /// x/y units (the camera's too).
+    #[arg(long, value_enum, default_value = "geo")]
     xy: ViewXy,
     /// Multiply heights by this (e.g. 0.1 for decimetre DEMs).
     #[arg(long, default_value_t = 1.0)]
@@ -182,10 +184,17 @@ impl ViewOptions {
                 self.z_scale
             )));
         }
-        Ok(match (self.xy, &decoded.raster.georef) {
-            (ViewXy::Geo, Some(g)) => Placement::georeferenced(g.geotransform, self.z_scale),
-            _ => Placement::pixel(self.z_scale),
-        })
+        let raster = &decoded.raster;
+        match self.xy {
+            ViewXy::Geo => Placement::tangent(
+                raster.georef.as_ref(),
+                raster.width,
+                raster.height,
+                self.z_scale,
+            )
+            .map_err(|e| CliError::Usage(e.to_string())),
+            ViewXy::Pixel => Ok(Placement::pixel(self.z_scale)),
+        }
     }
 }
 
@@ -371,7 +380,7 @@ pub fn view(args: &ViewArgs) -> Result<(), CliError> {
         schema_version: SCHEMA_VERSION,
         output: args.output.clone(),
         rule: format!("{rule:?}"),
-        xy_units: xy_name(args.options.xy),
+        xy_units: loaded.placement.frame_name(),
         triangles: frame.mesh.triangles.len(),
         vertices: frame.mesh.vertices.len(),
         cells: frame.tree.leaves().len(),
@@ -388,13 +397,6 @@ pub fn view(args: &ViewArgs) -> Result<(), CliError> {
     };
     print_view(&report, args.json);
     Ok(())
-}
-
-fn xy_name(xy: ViewXy) -> &'static str {
-    match xy {
-        ViewXy::Pixel => "pixel",
-        ViewXy::Geo => "georeferenced",
-    }
 }
 
 /// The area rule at the triangle count of a screen-space mesh (or the other way round,
@@ -756,7 +758,7 @@ fn summarise(
     FlythroughReport {
         schema_version: SCHEMA_VERSION,
         rule: format!("{rule:?}"),
-        xy_units: xy_name(args.options.xy),
+        xy_units: loaded.placement.frame_name(),
         viewport: args.options.viewport,
         decode_seconds: loaded.decode_seconds,
         prepare_seconds,

@@ -89,6 +89,11 @@ pub enum XyUnits {
     /// Metres east, north and up in a tangent frame: the geotransform gives longitude and
     /// latitude in degrees (geographic DEMs).
     Local(LocalFrame),
+    /// Metres east and north in the tangent plane of a frame, to first order at its
+    /// origin ([`LocalFrame::tangent`]: an affine map of longitude and latitude), and z
+    /// the stored value × z_scale (the ground does not curve away): the frame of views,
+    /// whose selection needs an affine grid.
+    Tangent(LocalFrame),
 }
 
 /// Where grid samples go in the output file.
@@ -179,6 +184,25 @@ impl Placement {
         })
     }
 
+    /// The placement of a view of a `width × height` raster with `georef`: a geographic
+    /// DEM goes to the tangent plane at its centre (metres, [`XyUnits::Tangent`]), any
+    /// other keeps its CRS's own x/y ([`Placement::crs_units`]).
+    pub fn tangent(
+        georef: Option<&Georef>,
+        width: usize,
+        height: usize,
+        z_scale: f64,
+    ) -> Result<Placement, FrameError> {
+        let metric = Placement::metric(georef, width, height, z_scale)?;
+        Ok(match metric.xy {
+            XyUnits::Local(frame) => Placement {
+                xy: XyUnits::Tangent(frame),
+                ..metric
+            },
+            _ => metric,
+        })
+    }
+
     /// The geotransform in use: `None` for pixel units.
     fn active_geotransform(&self) -> Option<&[f64; 6]> {
         match self.xy {
@@ -204,6 +228,10 @@ impl Placement {
         let y = gt[3] + c * gt[4] + r * gt[5];
         match self.xy {
             XyUnits::Local(frame) => frame.enu(x, y, z),
+            XyUnits::Tangent(frame) => {
+                let [east, north] = frame.tangent(x, y);
+                [east, north, z]
+            }
             _ => [x, y, z],
         }
     }
@@ -224,13 +252,23 @@ impl Placement {
         }
     }
 
-    /// The name of the output frame: `pixel`, `georeferenced` (the CRS's own x/y) or
-    /// `local_enu` (metres east, north, up).
+    /// The name of the output frame: `pixel`, `georeferenced` (the CRS's own x/y),
+    /// `local_enu` (metres east, north, up) or `local_tangent` (metres east and north in
+    /// the tangent plane, heights up).
     pub fn frame_name(&self) -> &'static str {
         match (self.xy, self.active_geotransform()) {
             (_, None) => "pixel",
             (XyUnits::Local(_), Some(_)) => "local_enu",
+            (XyUnits::Tangent(_), Some(_)) => "local_tangent",
             (_, Some(_)) => "georeferenced",
+        }
+    }
+
+    /// The origin of a local frame in use.
+    fn local_frame(&self) -> Option<LocalFrame> {
+        match (self.xy, self.active_geotransform()) {
+            (XyUnits::Local(f) | XyUnits::Tangent(f), Some(_)) => Some(f),
+            _ => None,
         }
     }
 
@@ -242,7 +280,7 @@ impl Placement {
             "crs": self.crs.label(),
             "z_scale": self.z_scale,
         });
-        if let (XyUnits::Local(f), Some(_)) = (self.xy, self.active_geotransform()) {
+        if let Some(f) = self.local_frame() {
             record["units"] = json!("metre");
             record["origin"] = json!({
                 "longitude": f.lon,
@@ -263,6 +301,10 @@ impl Placement {
             (XyUnits::Local(f), Some(_)) => format!(
                 "frame local_enu: metres east (x), north (y) and up (z) of longitude {} latitude {} height {} on WGS 84; CRS {crs}; {z}",
                 f.lon, f.lat, f.height
+            ),
+            (XyUnits::Tangent(f), Some(_)) => format!(
+                "frame local_tangent: metres east (x) and north (y) in the tangent plane at longitude {} latitude {} on WGS 84, to first order; CRS {crs}; {z}",
+                f.lon, f.lat
             ),
             (_, Some(_)) => {
                 format!("frame georeferenced: x/y in the units of CRS {crs} (pixel centres); {z}")

@@ -172,6 +172,22 @@ impl LocalFrame {
         self.ecef_to_enu(geodetic_to_ecef(lon, lat, h))
     }
 
+    /// Metres east and north of the origin in the frame's tangent plane, to first order:
+    /// longitude and latitude (degrees) scaled by the ellipsoid's radii of curvature at
+    /// the origin (the derivatives of [`LocalFrame::enu`] there). Straight lines stay
+    /// straight, so a grid maps to a grid; at ±0.5° of latitude from the origin east
+    /// distances are off by about `tan(lat) · 0.9 %`, and the ground does not curve away.
+    pub fn tangent(&self, lon: f64, lat: f64) -> [f64; 2] {
+        let sin_lat = self.lat.to_radians().sin();
+        let w2 = 1.0 - WGS84_E2 * sin_lat * sin_lat;
+        // Prime vertical and meridian radii of curvature.
+        let n = WGS84_A / w2.sqrt();
+        let m = WGS84_A * (1.0 - WGS84_E2) / (w2 * w2.sqrt());
+        let east = n * self.lat.to_radians().cos() * (lon - self.lon).to_radians();
+        let north = m * (lat - self.lat).to_radians();
+        [east, north]
+    }
+
     /// The frame of a geographic DEM: at the centre of its `width × height` grid
     /// (geotransform `gt` in degrees), height 0. Refuses latitudes beyond ±90.
     pub fn of_grid(gt: &[f64; 6], width: usize, height: usize) -> Result<LocalFrame, FrameError> {
@@ -225,6 +241,23 @@ mod tests {
             lat = p[2].atan2(r * (1.0 - WGS84_E2 * n / (n + h)));
         }
         [lon.to_degrees(), lat.to_degrees(), h]
+    }
+
+    #[test]
+    fn the_tangent_plane_is_the_local_frame_to_first_order() {
+        for (lon, lat) in [(11.5, 57.5), (-97.0, 0.0), (140.0, -35.0)] {
+            let frame = LocalFrame::at(lon, lat, 0.0);
+            assert_eq!(frame.tangent(lon, lat), [0.0, 0.0]);
+            // A step of 1e-4° (about 10 m): the second-order terms are millimetres.
+            for (d_lon, d_lat) in [(1e-4, 0.0), (0.0, 1e-4), (-1e-4, 2e-4)] {
+                let [e, n] = frame.tangent(lon + d_lon, lat + d_lat);
+                let enu = frame.enu(lon + d_lon, lat + d_lat, 0.0);
+                assert!(close([e, n, 0.0], [enu[0], enu[1], 0.0], 1e-3), "{enu:?}");
+            }
+        }
+        // A degree of latitude at 57.5° N times the meridian's radius of curvature there.
+        let north = LocalFrame::at(11.5, 57.5, 0.0).tangent(11.5, 58.5)[1];
+        assert!((north - 111_369.0).abs() < 5.0, "{north}");
     }
 
     #[test]
