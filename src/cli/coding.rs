@@ -195,6 +195,7 @@ pub fn encode(args: &EncodeArgs) -> Result<(), CliError> {
             None => TileGrid::balanced(width, height, tile),
         };
         if let Some(grid) = grid {
+            super::allocator::keep_freed_tile_buffers();
             let blocks = args.block.map(|side| side as usize);
             return super::tiled_coding::encode(args, &mut bands, (&grid, blocks), to_stdout);
         }
