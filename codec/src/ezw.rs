@@ -859,7 +859,10 @@ fn descendant_masks(layout: &CoefficientLayout, coefficients: &[i32]) -> Vec<u64
             for x in 0..columns {
                 let i = row + x;
                 let own = global_plane(coefficients[i], band.shift).map_or(0, |g| 1u64 << g);
-                masks[parent_row + (x >> halve)] |= own | masks[i];
+                // A band without children leaves its masks zero, and unread: their pages
+                // are never touched.
+                let below = if band.has_children { masks[i] } else { 0 };
+                masks[parent_row + (x >> halve)] |= own | below;
             }
         }
     }
