@@ -5,11 +5,11 @@
 
 use crate::quantize::{default_float_step, on_float_grid, FLOAT_GRIDS, MAX_INTEGER_MAGNITUDE};
 
-/// Binary exponents from 2^-192 to 2^63 (every f32's lowest bit and ulp fits).
-const BINS: usize = 256;
+/// Binary exponents from 2^-149 to 2^127: an f32's lowest set bit and ulp are in them.
+const BINS: usize = 277;
 
 /// Bin of 2^0.
-const BIN_OF_ONE: i64 = 192;
+const BIN_OF_ONE: i64 = 149;
 
 /// The counted valid samples of a float tile.
 #[derive(Debug, Clone, PartialEq)]
@@ -110,6 +110,27 @@ mod tests {
         assert_eq!(lowest_bit_and_ulp(0.375), Some((-3, -25)));
         assert_eq!(lowest_bit_and_ulp(f32::from_bits(1)), Some((-149, -149)));
         assert_eq!(lowest_bit_and_ulp(-0.0), None);
+        assert_eq!(lowest_bit_and_ulp(f32::MAX), Some((104, 104)));
+        assert_eq!(lowest_bit_and_ulp(2f32.powi(127)), Some((127, 104)));
+    }
+
+    #[test]
+    fn the_extremes_of_f32_are_counted() {
+        let mut detail = FloatDetail::default();
+        for v in [
+            f32::MAX,
+            -f32::MAX,
+            2f32.powi(127),
+            f32::from_bits(1),
+            f32::MIN_POSITIVE,
+        ] {
+            detail.add(v);
+        }
+        let (step, bits) = detail.step_and_residual_bits();
+        assert!(
+            step.is_finite() && step > 0.0 && bits.is_finite(),
+            "{step} {bits}"
+        );
     }
 
     #[test]
