@@ -65,12 +65,10 @@ pub fn triangulate(
     // Most cells have two triangles and a few hanging vertices.
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tree.leaves().len() * 5 / 2 + 16);
     let mut scratch = Scratch::default();
+    let mut push = |t: [u32; 3]| triangles.push(t);
+    let mut block = GridBlock::default();
     let nodata = tree.has_nodata();
-    let leaves = tree.leaves();
-    let mut k = 0;
-    while k < leaves.len() {
-        let cell = leaves[k];
-        let mut push = |t: [u32; 3]| triangles.push(t);
+    for &cell in tree.leaves() {
         if cell.level > 0 {
             let maps = (&corners, &numbers);
             leaf_triangles(tree, cell, shape(cell), maps, &mut scratch, &mut push);
@@ -78,10 +76,8 @@ pub fn triangulate(
             let ring = numbered_grid_cell(cell, &numbers);
             grid_cell_triangles(tree.valid_corners(cell), ring, &mut push);
         } else {
-            // The first of a split level-1 node's grid cells: all of them follow.
-            k += grid_node_triangles(cell, &numbers, (width, height), &mut triangles) - 1;
+            grid_cell_triangles(0b1111, block.corners(cell, &numbers, height), &mut push);
         }
-        k += 1;
     }
     GridMesh {
         width,
@@ -99,37 +95,36 @@ fn numbered_grid_cell(cell: Cell, numbers: &VertexNumbers) -> [u32; 4] {
     [(x, y), (x + 1, y), (x + 1, y + 1), (x, y + 1)].map(|(x, y)| numbers.number(x, y))
 }
 
-/// Appends the triangles of the grid cells of the split level-1 node whose top-left
-/// grid cell is `first`, on a grid of `size` samples without nodata, in the order of
-/// [`CellTree::leaves`] (Z order); returns how many grid cells that is. Every sample of
-/// the node is then a vertex, so the numbers along a row follow each other: one look-up
-/// a row numbers them all.
-#[inline]
-fn grid_node_triangles(
-    first: Cell,
-    numbers: &VertexNumbers,
-    (width, height): (usize, usize),
-    triangles: &mut Vec<[u32; 3]>,
-) -> usize {
-    let (x, y) = first.position();
-    let (right, below) = (x + 2 < width, y + 2 < height);
-    let top = numbers.number(x, y);
-    let middle = numbers.number(x, y + 1);
-    let cell = |row: u32, next: u32, dx: u32| {
-        full_grid_cell([row + dx, row + dx + 1, next + dx + 1, next + dx])
-    };
-    triangles.extend_from_slice(&cell(top, middle, 0));
-    if right {
-        triangles.extend_from_slice(&cell(top, middle, 1));
-    }
-    if below {
-        let bottom = numbers.number(x, y + 2);
-        triangles.extend_from_slice(&cell(middle, bottom, 0));
-        if right {
-            triangles.extend_from_slice(&cell(middle, bottom, 1));
+/// The vertex numbers of the grid cells under one split level-1 node when no sample is
+/// nodata: every sample of the node is then a vertex, so the numbers along a row follow
+/// each other and one look-up a row gives them all.
+#[derive(Debug, Default)]
+struct GridBlock {
+    /// The node's top-left sample.
+    origin: Option<(usize, usize)>,
+    /// The number of the node's first sample on each of its rows.
+    rows: [u32; 3],
+}
+
+impl GridBlock {
+    /// The corner numbers of grid cell `cell` in [`grid_cell_ring`] order, on a grid of
+    /// `height` rows.
+    #[inline]
+    fn corners(&mut self, cell: Cell, numbers: &VertexNumbers, height: usize) -> [u32; 4] {
+        let (x, y) = cell.position();
+        let origin = (x & !1, y & !1);
+        if self.origin != Some(origin) {
+            self.origin = Some(origin);
+            for (k, row) in self.rows.iter_mut().enumerate() {
+                if origin.1 + k < height {
+                    *row = numbers.number(origin.0, origin.1 + k);
+                }
+            }
         }
+        let (dx, dy) = ((x - origin.0) as u32, y - origin.1);
+        let (tl, bl) = (self.rows[dy] + dx, self.rows[dy + 1] + dx);
+        [tl, tl + 1, bl + 1, bl]
     }
-    1 + usize::from(right) + usize::from(below) + usize::from(right && below)
 }
 
 /// Emits the triangles of leaf `cell` (level ≥ 1) in `shape`, numbered by `numbers`, its
@@ -343,7 +338,10 @@ fn grid_cell_ring(width: usize, cell: Cell) -> [u32; 4] {
 fn grid_cell_triangles(valid: u8, ring: [u32; 4], emit: &mut impl FnMut([u32; 3])) {
     let [tl, tr, br, bl] = ring;
     match valid {
-        0b1111 => full_grid_cell(ring).into_iter().for_each(emit),
+        0b1111 => {
+            emit([tl, tr, br]);
+            emit([br, bl, tl]);
+        }
         // Dropping one corner of the counter-clockwise ring keeps it counter-clockwise.
         0b1110 => emit([tr, br, bl]),
         0b1101 => emit([tl, br, bl]),
@@ -351,13 +349,6 @@ fn grid_cell_triangles(valid: u8, ring: [u32; 4], emit: &mut impl FnMut([u32; 3]
         0b0111 => emit([tl, tr, br]),
         _ => {}
     }
-}
-
-/// The two triangles of a grid cell with four valid corners `ring` (top-left, top-right,
-/// bottom-right, bottom-left).
-#[inline]
-fn full_grid_cell([tl, tr, br, bl]: [u32; 4]) -> [[u32; 3]; 2] {
-    [[tl, tr, br], [br, bl, tl]]
 }
 
 /// Triangulates the half-cell bounded by chains `ab` (A … B) and `bc` (B … C) and the
