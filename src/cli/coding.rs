@@ -30,7 +30,7 @@ pub struct EncodeArgs {
     #[arg(short, long)]
     pub(super) output: PathBuf,
     /// Stop at this many bits per sample (whole file); lossy 9/7 unless --wavelet 53
-    /// (integer samples: the lossless file instead when it fits, unless --wavelet 97).
+    /// (the lossless file instead when it fits, unless --wavelet 97).
     #[arg(long, conflicts_with_all = ["max_error", "precision"])]
     bpp: Option<f64>,
     /// Keep every valid sample within E data units of the original (the smaller of a

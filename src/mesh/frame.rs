@@ -135,6 +135,9 @@ pub struct LocalFrame {
     origin: [f64; 3],
     /// Rows of the ECEF → ENU rotation: east, north, up unit vectors in ECEF.
     axes: [[f64; 3]; 3],
+    /// Metres a degree of longitude and of latitude spans at the origin (the radii of
+    /// curvature there): [`LocalFrame::tangent`]'s scales.
+    metres_per_degree: [f64; 2],
 }
 
 impl LocalFrame {
@@ -142,6 +145,10 @@ impl LocalFrame {
     pub fn at(lon: f64, lat: f64, height: f64) -> LocalFrame {
         let (sin_lat, cos_lat) = lat.to_radians().sin_cos();
         let (sin_lon, cos_lon) = lon.to_radians().sin_cos();
+        let w2 = 1.0 - WGS84_E2 * sin_lat * sin_lat;
+        // Prime vertical and meridian radii of curvature.
+        let n = WGS84_A / w2.sqrt();
+        let m = WGS84_A * (1.0 - WGS84_E2) / (w2 * w2.sqrt());
         LocalFrame {
             lon,
             lat,
@@ -152,6 +159,7 @@ impl LocalFrame {
                 [-sin_lat * cos_lon, -sin_lat * sin_lon, cos_lat],
                 [cos_lat * cos_lon, cos_lat * sin_lon, sin_lat],
             ],
+            metres_per_degree: [n * cos_lat, m].map(|r| r * 1f64.to_radians()),
         }
     }
 
@@ -178,14 +186,8 @@ impl LocalFrame {
     /// straight, so a grid maps to a grid; at ±0.5° of latitude from the origin east
     /// distances are off by about `tan(lat) · 0.9 %`, and the ground does not curve away.
     pub fn tangent(&self, lon: f64, lat: f64) -> [f64; 2] {
-        let sin_lat = self.lat.to_radians().sin();
-        let w2 = 1.0 - WGS84_E2 * sin_lat * sin_lat;
-        // Prime vertical and meridian radii of curvature.
-        let n = WGS84_A / w2.sqrt();
-        let m = WGS84_A * (1.0 - WGS84_E2) / (w2 * w2.sqrt());
-        let east = n * self.lat.to_radians().cos() * (lon - self.lon).to_radians();
-        let north = m * (lat - self.lat).to_radians();
-        [east, north]
+        let [east, north] = self.metres_per_degree;
+        [east * (lon - self.lon), north * (lat - self.lat)]
     }
 
     /// The frame of a geographic DEM: at the centre of its `width × height` grid
