@@ -293,17 +293,33 @@ pub fn inverse_1311(data: &mut [i32], width: usize, height: usize, levels: u32) 
 }
 
 /// [`forward_1311`] for [`Wavelet::Int1311`], else [`forward_53`] (the 9/7 has no
-/// integer form; callers pass a reversible wavelet).
+/// integer form; callers pass a reversible wavelet), the invalid samples of `valid` (a
+/// mask of the image, `None` when every sample is valid) given the values their row
+/// neighbours predict: the finest level's row high-pass is zero there.
+///
+/// The finest rows' predict step is the last step of the inverse, so an odd sample's
+/// value changes nothing but that sample and its high-pass output. Every other step's
+/// outputs feed other samples' reconstruction, so only this one is free: zeroing the
+/// high-pass outputs at voids of every level and direction (and fixing the valid samples
+/// after each inverse, repeated) codes more, not less (README, *Voids*).
 pub(crate) fn forward_integer(
     wavelet: Wavelet,
     data: &mut [i32],
-    width: usize,
-    height: usize,
+    (width, height): (usize, usize),
     levels: u32,
+    valid: Option<&[bool]>,
 ) {
-    match wavelet {
-        Wavelet::Int1311 => forward_1311(data, width, height, levels),
-        Wavelet::Int53 | Wavelet::Cdf97 => forward_53(data, width, height, levels),
+    match (wavelet, valid) {
+        (Wavelet::Int1311, None) => forward_1311(data, width, height, levels),
+        (_, None) => forward_53(data, width, height, levels),
+        (Wavelet::Int1311, Some(_)) => {
+            check_args(data.len(), width, height, levels);
+            forward_2d_around(&Int1311Kernel, data, width, height, levels, valid);
+        }
+        (_, Some(_)) => {
+            check_args(data.len(), width, height, levels);
+            forward_2d_around(&Int53Kernel, data, width, height, levels, valid);
+        }
     }
 }
 
@@ -479,8 +495,22 @@ fn regions(width: usize, height: usize, levels: u32) -> Vec<(usize, usize)> {
 /// `lo.len() = ceil(n/2) * lanes` and `hi.len() = floor(n/2) * lanes` for signals of `n`
 /// samples. On return `lo` holds the low-pass and `hi` the high-pass outputs.
 trait Kernel<T> {
-    fn analyze(&self, lo: &mut [T], hi: &mut [T], lanes: usize);
+    /// Analysis, `after_predict` applied to the high-pass outputs right after the first
+    /// predict step (where each still depends on its own odd sample and the even ones
+    /// only: changing one there is changing that odd sample).
+    fn analyze_then(
+        &self,
+        lo: &mut [T],
+        hi: &mut [T],
+        lanes: usize,
+        after_predict: impl FnOnce(&mut [T]),
+    );
     fn synthesize(&self, lo: &mut [T], hi: &mut [T], lanes: usize);
+
+    #[inline(always)]
+    fn analyze(&self, lo: &mut [T], hi: &mut [T], lanes: usize) {
+        self.analyze_then(lo, hi, lanes, |_| {});
+    }
 }
 
 /// Predict step: `hi[i] = f(hi[i], lo[i], lo[i+1])`, with `lo[nl] = lo[nl-1]` (symmetric
@@ -586,10 +616,17 @@ fn integer_update(a: i32, b: i32) -> i32 {
 struct Int53Kernel;
 
 impl Kernel<i32> for Int53Kernel {
-    fn analyze(&self, lo: &mut [i32], hi: &mut [i32], lanes: usize) {
+    fn analyze_then(
+        &self,
+        lo: &mut [i32],
+        hi: &mut [i32],
+        lanes: usize,
+        after_predict: impl FnOnce(&mut [i32]),
+    ) {
         predict(lo, hi, lanes, |h, a, b| {
             h.wrapping_sub(a.wrapping_add(b) >> 1)
         });
+        after_predict(hi);
         update(lo, hi, lanes, |l, a, b| {
             l.wrapping_add(integer_update(a, b))
         });
@@ -623,10 +660,17 @@ fn integer_predict_1311(s: [i32; 6]) -> i32 {
 }
 
 impl Kernel<i32> for Int1311Kernel {
-    fn analyze(&self, lo: &mut [i32], hi: &mut [i32], lanes: usize) {
+    fn analyze_then(
+        &self,
+        lo: &mut [i32],
+        hi: &mut [i32],
+        lanes: usize,
+        after_predict: impl FnOnce(&mut [i32]),
+    ) {
         predict6(lo, hi, lanes, |h, s| {
             h.wrapping_sub(integer_predict_1311(s))
         });
+        after_predict(hi);
         update(lo, hi, lanes, |l, a, b| {
             l.wrapping_add(integer_update(a, b))
         });
@@ -652,8 +696,15 @@ fn real_predict_1311(s: [f64; 6]) -> f64 {
 }
 
 impl Kernel<f64> for Real1311 {
-    fn analyze(&self, lo: &mut [f64], hi: &mut [f64], lanes: usize) {
+    fn analyze_then(
+        &self,
+        lo: &mut [f64],
+        hi: &mut [f64],
+        lanes: usize,
+        after_predict: impl FnOnce(&mut [f64]),
+    ) {
         predict6(lo, hi, lanes, |h, s| h - real_predict_1311(s));
+        after_predict(hi);
         update(lo, hi, lanes, |l, a, b| l + 0.25 * (a + b));
     }
 
@@ -695,12 +746,21 @@ const REAL53: Linear = Linear {
 };
 
 impl Kernel<f64> for Linear {
-    fn analyze(&self, lo: &mut [f64], hi: &mut [f64], lanes: usize) {
+    fn analyze_then(
+        &self,
+        lo: &mut [f64],
+        hi: &mut [f64],
+        lanes: usize,
+        after_predict: impl FnOnce(&mut [f64]),
+    ) {
         // A single sample (no high-pass) is passed through unchanged, unscaled.
         if hi.is_empty() {
             return;
         }
-        for (i, &c) in self.steps.iter().enumerate() {
+        let first = self.steps[0];
+        predict(lo, hi, lanes, |h, a, b| h + first * (a + b));
+        after_predict(hi);
+        for (i, &c) in self.steps.iter().enumerate().skip(1) {
             if i % 2 == 0 {
                 predict(lo, hi, lanes, |h, a, b| h + c * (a + b));
             } else {
@@ -844,12 +904,26 @@ fn forward_2d<T: Sample, K: Kernel<T::Work>>(
     height: usize,
     levels: u32,
 ) {
+    forward_2d_around(kernel, data, width, height, levels, None);
+}
+
+/// [`forward_2d`]; with `valid`, the finest rows' high-pass outputs at invalid (void)
+/// samples are zeroed right after the predict step: the voids take the values their
+/// neighbours predict, which changes no valid sample and codes nothing there.
+fn forward_2d_around<T: Sample, K: Kernel<T::Work>>(
+    kernel: &K,
+    data: &mut [T],
+    width: usize,
+    height: usize,
+    levels: u32,
+    mut valid: Option<&[bool]>,
+) {
     if width == 0 || height == 0 {
         return;
     }
     let mut scratch = scratch_for::<T>(width, height);
     for &(lw, lh) in regions(width, height, levels).iter().take(levels as usize) {
-        rows_analyze(kernel, data, width, lw, lh, &mut scratch);
+        rows_analyze(kernel, data, width, (lw, lh), &mut scratch, valid.take());
         cols_analyze(kernel, data, width, lw, lh, &mut scratch);
     }
 }
@@ -882,14 +956,16 @@ fn inverse_2d<T: Sample, K: Kernel<T::Work>>(
     fits
 }
 
-/// 1-D analysis of the first `lw` samples of the first `lh` rows.
+/// 1-D analysis of the first `lw` samples of the first `lh` rows; with `valid` (a mask
+/// of the whole image), each high-pass output at an invalid odd sample is zeroed after
+/// the predict step.
 fn rows_analyze<T: Sample, K: Kernel<T::Work>>(
     kernel: &K,
     data: &mut [T],
     width: usize,
-    lw: usize,
-    lh: usize,
+    (lw, lh): (usize, usize),
     scratch: &mut [T::Work],
+    valid: Option<&[bool]>,
 ) {
     if lw < 2 {
         return;
@@ -897,7 +973,7 @@ fn rows_analyze<T: Sample, K: Kernel<T::Work>>(
     let nl = lw.div_ceil(2);
     let (lo, rest) = scratch.split_at_mut(nl);
     let hi = &mut rest[..lw - nl];
-    for row in data.chunks_exact_mut(width).take(lh) {
+    for (y, row) in data.chunks_exact_mut(width).take(lh).enumerate() {
         let row = &mut row[..lw];
         for ((pair, l), h) in row.chunks_exact(2).zip(lo.iter_mut()).zip(hi.iter_mut()) {
             *l = pair[0].widen();
@@ -906,9 +982,26 @@ fn rows_analyze<T: Sample, K: Kernel<T::Work>>(
         if lw % 2 == 1 {
             lo[nl - 1] = row[lw - 1].widen();
         }
-        kernel.analyze(lo, hi, 1);
+        match valid {
+            Some(valid) => {
+                let row_valid = &valid[y * width..][..lw];
+                kernel.analyze_then(lo, hi, 1, |hi| zero_at_voids(hi, row_valid));
+            }
+            None => kernel.analyze(lo, hi, 1),
+        }
         store(&mut row[..nl], lo);
         store(&mut row[nl..], hi);
+    }
+}
+
+/// Zeroes the high-pass outputs `hi` of a row whose odd samples `row_valid` says are
+/// invalid.
+#[inline(always)]
+fn zero_at_voids<W: Default>(hi: &mut [W], row_valid: &[bool]) {
+    for (h, pair) in hi.iter_mut().zip(row_valid.chunks_exact(2)) {
+        if !pair[1] {
+            *h = W::default();
+        }
     }
 }
 
@@ -1288,7 +1381,7 @@ mod tests {
                     }
                 }
                 let mut coefficients = data.clone();
-                forward_integer(wavelet, &mut coefficients, w, h, levels);
+                forward_integer(wavelet, &mut coefficients, (w, h), levels, None);
                 let mut spilled = BTreeMap::new();
                 let mut narrow: Vec<i16> = (coefficients.iter().enumerate())
                     .map(|(i, &c)| {
@@ -1808,6 +1901,33 @@ mod tests {
         forward_2d(&Real1311, &mut signal, 40, 1, 1);
         for &d in &signal[20 + 3..40 - 3] {
             assert!(d.abs() < 1e-9, "{d}");
+        }
+    }
+
+    #[test]
+    fn voids_take_the_values_their_row_neighbours_predict() {
+        let (w, h, levels) = (23, 17, 3);
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let samples: Vec<i32> = (0..w * h)
+            .map(|_| (rng.next() % 2001) as i32 - 1000)
+            .collect();
+        let valid: Vec<bool> = (0..w * h).map(|_| !rng.next().is_multiple_of(3)).collect();
+        for wavelet in [Wavelet::Int53, Wavelet::Int1311] {
+            let mut coefficients = samples.clone();
+            forward_integer(wavelet, &mut coefficients, (w, h), levels, Some(&valid));
+            inverse_integer(wavelet, &mut coefficients, w, h, levels);
+            for (i, (&got, &sample)) in coefficients.iter().zip(&samples).enumerate() {
+                if valid[i] || i % w % 2 == 0 {
+                    assert_eq!(got, sample, "{wavelet:?}: a valid or even sample, at {i}");
+                }
+            }
+            // The 5/3 predicts an interior odd sample by the mean of its neighbours.
+            if wavelet == Wavelet::Int53 {
+                for i in (0..w * h).filter(|&i| !valid[i] && i % w % 2 == 1) {
+                    let mean = (samples[i - 1] + samples[i + 1]) >> 1;
+                    assert_eq!(coefficients[i], mean, "void at {i}");
+                }
+            }
         }
     }
 

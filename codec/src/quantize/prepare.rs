@@ -41,7 +41,8 @@ pub(crate) struct Prepared {
 /// What the coefficients that reach no valid sample hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum VoidCoefficients {
-    /// Zeroed ([`wavelet::zero_unreached`]): what the encoder codes.
+    /// Zeroed ([`wavelet::zero_unreached`]), the voids given the values their row
+    /// neighbours predict ([`wavelet::forward_integer`]): what the encoder codes.
     Zeroed,
     /// The transform of the filled voids: what coder 3's prior tables were trained on
     /// (they are part of the format, so their training stays as it was).
@@ -80,7 +81,8 @@ pub(crate) fn prepare_integer(
     } = plane;
     let mut values = filled(values, width, height, mask);
     let levels = level_count(norms.len());
-    wavelet::forward_integer(wavelet, &mut values, width, height, levels);
+    let predicted = voids_of(mask).filter(|_| voids == VoidCoefficients::Zeroed);
+    wavelet::forward_integer(wavelet, &mut values, (width, height), levels, predicted);
     if voids == VoidCoefficients::Zeroed {
         wavelet::zero_unreached(&mut values, width, height, levels, wavelet, mask);
     }
@@ -122,7 +124,13 @@ pub(crate) fn cheaper_reversible(
     }
     let bits = |wavelet: Wavelet| -> u64 {
         let mut coefficients = values.clone();
-        wavelet::forward_integer(wavelet, &mut coefficients, width, height, levels);
+        wavelet::forward_integer(
+            wavelet,
+            &mut coefficients,
+            (width, height),
+            levels,
+            voids_of(&mask),
+        );
         wavelet::zero_unreached(&mut coefficients, width, height, levels, wavelet, &mask);
         let bit_length = |c: &i32| u64::from(32 - c.unsigned_abs().leading_zeros());
         coefficients.iter().map(bit_length).sum()
@@ -131,6 +139,11 @@ pub(crate) fn cheaper_reversible(
         true => Wavelet::Int53,
         false => Wavelet::Int1311,
     })
+}
+
+/// `mask` when it holds a void, else `None`.
+fn voids_of(mask: &[bool]) -> Option<&[bool]> {
+    mask.iter().any(|&m| !m).then_some(mask)
 }
 
 /// `values` with the samples `mask` says are voids filled smoothly (rounded).

@@ -168,7 +168,7 @@ mod tests {
                 .collect();
             for wavelet in [Wavelet::Int53, Wavelet::Int1311] {
                 let mut zeroed = ints.clone();
-                forward_integer(wavelet, &mut zeroed, width, height, levels);
+                forward_integer(wavelet, &mut zeroed, (width, height), levels, Some(&valid));
                 zero_unreached(&mut zeroed, width, height, levels, wavelet, &valid);
                 inverse_integer(wavelet, &mut zeroed, width, height, levels);
                 for i in (0..width * height).filter(|&i| valid[i]) {
