@@ -30,7 +30,7 @@ pub(crate) use prepare::{
 pub(crate) use samples::{
     integer_samples, rescale_97, sample_bits, samples_from_bits, to_samples, whole_offset,
 };
-pub(crate) use voids::fill_voids;
+pub(crate) use voids::{fill_voids, smooth_void_edges};
 
 /// Largest |q| the integer path accepts: keeps 5/3 coefficients far below 2^31.
 pub const MAX_INTEGER_MAGNITUDE: f64 = (1u64 << 26) as f64;
@@ -331,6 +331,34 @@ mod tests {
             assert!(step > 0.0 && step.is_finite(), "{v}: step {step}");
             assert!(v.abs() / step <= MAX_INTEGER_MAGNITUDE, "{v}: step {step}");
         }
+    }
+
+    #[test]
+    fn void_edges_continue_the_slope() {
+        // A paraboloid (biharmonic, not harmonic) with a hole: the harmonic fill sags
+        // away from it, the biharmonic one near the edges follows it.
+        let (w, h) = (32, 32);
+        let surface = |i: usize| {
+            let (x, y) = ((i % w) as f64 - 12.0, (i / w) as f64 - 14.0);
+            0.2 * (x * x + y * y)
+        };
+        let mask: Vec<bool> = (0..w * h)
+            .map(|i| !((10..14).contains(&(i % w)) && (11..15).contains(&(i / w))))
+            .collect();
+        let worst = |values: &[f64]| {
+            (0..w * h)
+                .map(|i| (values[i] - surface(i)).abs())
+                .fold(0.0, f64::max)
+        };
+        let mut harmonic: Vec<f64> = (0..w * h)
+            .map(|i| if mask[i] { surface(i) } else { 0.0 })
+            .collect();
+        fill_voids(&mut harmonic, w, h, &mask);
+        let mut smooth = harmonic.clone();
+        smooth_void_edges(&mut smooth, w, h, &mask);
+        let (before, after) = (worst(&harmonic), worst(&smooth));
+        assert!(before > 0.5, "the harmonic fill is off by {before}");
+        assert!(after < before / 4.0, "{after} against {before}");
     }
 
     #[test]

@@ -10,8 +10,8 @@ use crate::raster::{Raster, Samples};
 use crate::wavelet::{self, ShiftRule, Subband, Wavelet};
 
 use super::{
-    default_float_step, detect_float_grid, fill_voids, float_plane, integer_plane, valid_range,
-    IntegerPlane, ValueMapping,
+    default_float_step, detect_float_grid, fill_voids, float_plane, integer_plane,
+    smooth_void_edges, valid_range, IntegerPlane, ValueMapping,
 };
 
 /// Coefficients and parameters ready for the EZW coder.
@@ -41,11 +41,12 @@ pub(crate) struct Prepared {
 /// What the coefficients that reach no valid sample hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum VoidCoefficients {
-    /// Zeroed ([`wavelet::zero_unreached`]), the voids given the values their row
-    /// neighbours predict ([`wavelet::forward_integer`]): what the encoder codes.
+    /// Zeroed ([`wavelet::zero_unreached`]), the voids filled biharmonically near the
+    /// valid samples ([`smooth_void_edges`]) and given the values their row neighbours
+    /// predict ([`wavelet::forward_integer`]): what the encoder codes.
     Zeroed,
-    /// The transform of the filled voids: what coder 3's prior tables were trained on
-    /// (they are part of the format, so their training stays as it was).
+    /// The transform of the harmonically filled voids: what coder 3's prior tables were
+    /// trained on (they are part of the format, so their training stays as it was).
     #[cfg(feature = "research")]
     Filled,
 }
@@ -79,7 +80,7 @@ pub(crate) fn prepare_integer(
         mapping,
         residuals,
     } = plane;
-    let mut values = filled(values, width, height, mask);
+    let mut values = filled(values, width, height, mask, voids);
     let levels = level_count(norms.len());
     let predicted = voids_of(mask).filter(|_| voids == VoidCoefficients::Zeroed);
     wavelet::forward_integer(wavelet, &mut values, (width, height), levels, predicted);
@@ -117,7 +118,7 @@ pub(crate) fn cheaper_reversible(
     let mask = raster.valid_mask();
     let (width, height) = (raster.width, raster.height);
     let (IntegerPlane { values, .. }, _, _) = integer_plane_for(raster, &mask, quality)?;
-    let values = filled(values, width, height, &mask);
+    let values = filled(values, width, height, &mask, VoidCoefficients::Zeroed);
     let widest = values.iter().map(|v| v.unsigned_abs()).max().unwrap_or(0);
     if widest > wavelet::MAX_EXACT_1311.unsigned_abs() {
         return Ok(Wavelet::Int53);
@@ -146,11 +147,21 @@ fn voids_of(mask: &[bool]) -> Option<&[bool]> {
     mask.iter().any(|&m| !m).then_some(mask)
 }
 
-/// `values` with the samples `mask` says are voids filled smoothly (rounded).
-fn filled(mut values: Vec<i32>, width: usize, height: usize, mask: &[bool]) -> Vec<i32> {
+/// `values` with the samples `mask` says are voids filled smoothly (rounded), as `voids`
+/// says.
+fn filled(
+    mut values: Vec<i32>,
+    width: usize,
+    height: usize,
+    mask: &[bool],
+    voids: VoidCoefficients,
+) -> Vec<i32> {
     if mask.iter().any(|&m| !m) {
         let mut smooth: Vec<f64> = values.iter().map(|&v| v as f64).collect();
         fill_voids(&mut smooth, width, height, mask);
+        if voids == VoidCoefficients::Zeroed {
+            smooth_void_edges(&mut smooth, width, height, mask);
+        }
         for (v, f) in values.iter_mut().zip(smooth) {
             *v = f.round() as i32;
         }
@@ -217,7 +228,7 @@ pub(crate) fn prepare_97(
     (voids, finest): (VoidCoefficients, FinestStep),
 ) -> Prepared {
     let (width, height) = (raster.width, raster.height);
-    let (mean, mut data) = centred_samples(raster, mask);
+    let (mean, mut data) = centred_samples(raster, mask, voids);
     let levels = level_count(norms.len());
     wavelet::forward_97(&mut data, width, height, levels);
     if voids == VoidCoefficients::Zeroed {
@@ -267,8 +278,8 @@ pub(crate) fn prepare_97(
 
 /// The mean of the valid samples (a whole number for integers, an f32 for floats: any
 /// offset works, these are shorter to store) and the samples less it as f32, voids
-/// filled.
-fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
+/// filled as `voids` says.
+fn centred_samples(raster: &Raster, mask: &[bool], voids: VoidCoefficients) -> (f64, Vec<f32>) {
     let valid = mask.iter().filter(|&&m| m).count();
     // From −0.0, as `Iterator::sum` starts: the same mean, sign of zero included.
     let sum = raster
@@ -287,6 +298,9 @@ fn centred_samples(raster: &Raster, mask: &[bool]) -> (f64, Vec<f32>) {
     }
     let mut centred = raster.samples.map_f64(centre);
     fill_voids(&mut centred, raster.width, raster.height, mask);
+    if voids == VoidCoefficients::Zeroed {
+        smooth_void_edges(&mut centred, raster.width, raster.height, mask);
+    }
     (mean, centred.iter().map(|&v| v as f32).collect())
 }
 

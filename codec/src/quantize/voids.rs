@@ -1,6 +1,11 @@
 //! Void filling: the samples where the mask is false get a smooth continuation of the
 //! valid ones, so filled voids cost almost no bits after the transform.
 
+/// How far from a valid sample the fill is made biharmonic ([`smooth_void_edges`]).
+const EDGE_BAND: usize = 4;
+/// Gauss–Seidel sweeps of the biharmonic equation over that band.
+const EDGE_SWEEPS: usize = 16;
+
 /// One level of the push–pull pyramid: its size, and per cell the sum and the count of
 /// the valid samples it covers.
 struct Level {
@@ -12,7 +17,8 @@ struct Level {
 
 /// Fills the samples where `mask` is false with a smooth continuation of the valid ones:
 /// a push–pull pyramid (averages of valid samples, coarse to fine) followed by a few
-/// relaxation sweeps.
+/// relaxation sweeps (harmonic; [`smooth_void_edges`] then makes it meet the valid
+/// samples with their slope).
 pub(crate) fn fill_voids(values: &mut [f64], width: usize, height: usize, mask: &[bool]) {
     if mask.iter().all(|&m| m) {
         return;
@@ -119,4 +125,74 @@ fn relax(values: &mut [f64], width: usize, height: usize, mask: &[bool]) {
             }
         }
     }
+}
+
+/// After [`fill_voids`]: Gauss–Seidel sweeps of the biharmonic equation (the 13-point
+/// stencil) over the voids within [`EDGE_BAND`] samples of a valid one and two of the
+/// image's edges, the other voids keeping the harmonic fill. A harmonic fill meets the
+/// terrain with a kink, which the wavelet codes at every level; a biharmonic one
+/// continues its slope too (README, *Voids filled biharmonically near the terrain*).
+pub(crate) fn smooth_void_edges(values: &mut [f64], width: usize, height: usize, mask: &[bool]) {
+    let runs = void_runs_near_valid(mask, width, height);
+    for _ in 0..EDGE_SWEEPS {
+        for &(start, len) in &runs {
+            sweep_run(values, width, start, len);
+        }
+    }
+}
+
+/// One Gauss–Seidel sweep of the biharmonic equation along the `len` samples from
+/// `start`, whose rows and columns are at least two samples inside the image.
+fn sweep_run(values: &mut [f64], width: usize, start: usize, len: usize) {
+    let span = len + 4;
+    let (above, rest) = values.split_at_mut(start - 2);
+    let (row, below) = rest.split_at_mut(span);
+    let up2 = &above[start - 2 * width - 2..][..span];
+    let up1 = &above[start - width - 2..][..span];
+    let down1 = &below[width - span..][..span];
+    let down2 = &below[2 * width - span..][..span];
+    for k in 2..len + 2 {
+        let near = row[k - 1] + row[k + 1] + up1[k] + down1[k];
+        let diagonal = up1[k - 1] + up1[k + 1] + down1[k - 1] + down1[k + 1];
+        let far = row[k - 2] + row[k + 2] + up2[k] + down2[k];
+        row[k] = (8.0 * near - 2.0 * diagonal - far) * (1.0 / 20.0);
+    }
+}
+
+/// The voids within [`EDGE_BAND`] samples (in x and y) of a valid sample and at least
+/// two samples inside the image, as runs `(start, len)` along rows.
+fn void_runs_near_valid(mask: &[bool], width: usize, height: usize) -> Vec<(usize, usize)> {
+    // Valid samples in the rectangle [0, x) × [0, y), at `y * (width + 1) + x`.
+    let stride = width + 1;
+    let mut valid_before = vec![0u32; stride * (height + 1)];
+    for y in 0..height {
+        let mut in_row = 0;
+        for x in 0..width {
+            in_row += u32::from(mask[y * width + x]);
+            valid_before[(y + 1) * stride + x + 1] = valid_before[y * stride + x + 1] + in_row;
+        }
+    }
+    let near_valid = |x: usize, y: usize| {
+        let (x0, y0) = (x.saturating_sub(EDGE_BAND), y.saturating_sub(EDGE_BAND));
+        let (x1, y1) = (
+            (x + EDGE_BAND + 1).min(width),
+            (y + EDGE_BAND + 1).min(height),
+        );
+        valid_before[y1 * stride + x1] + valid_before[y0 * stride + x0]
+            > valid_before[y0 * stride + x1] + valid_before[y1 * stride + x0]
+    };
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for y in 2..height.saturating_sub(2) {
+        for x in 2..width.saturating_sub(2) {
+            let i = y * width + x;
+            if mask[i] || !near_valid(x, y) {
+                continue;
+            }
+            match runs.last_mut() {
+                Some((start, len)) if *start + *len == i => *len += 1,
+                _ => runs.push((i, 1)),
+            }
+        }
+    }
+    runs
 }
