@@ -299,9 +299,9 @@ pub fn inverse_1311(data: &mut [i32], width: usize, height: usize, levels: u32) 
 ///
 /// The finest rows' predict step is the last step of the inverse, so an odd sample's
 /// value changes nothing but that sample and its high-pass output. Every other step's
-/// outputs feed other samples' reconstruction, so only this one is free: zeroing the
-/// high-pass outputs at voids of every level and direction (and fixing the valid samples
-/// after each inverse, repeated) codes more, not less (README, *Voids*).
+/// outputs feed other samples' reconstruction, so only this one is free: zeroing at voids
+/// in every pass is not lossless, and restoring the valid samples after each inverse
+/// (repeated) codes more, not less (README, *Voids predicted by their row*).
 pub(crate) fn forward_integer(
     wavelet: Wavelet,
     data: &mut [i32],
