@@ -162,30 +162,25 @@ fn sweep_run(values: &mut [f64], width: usize, start: usize, len: usize) {
 /// The voids within [`EDGE_BAND`] samples (in x and y) of a valid sample and at least
 /// two samples inside the image, as runs `(start, len)` along rows.
 fn void_runs_near_valid(mask: &[bool], width: usize, height: usize) -> Vec<(usize, usize)> {
-    // Valid samples in the rectangle [0, x) × [0, y), at `y * (width + 1) + x`.
-    let stride = width + 1;
-    let mut valid_before = vec![0u32; stride * (height + 1)];
-    for y in 0..height {
-        let mut in_row = 0;
-        for x in 0..width {
-            in_row += u32::from(mask[y * width + x]);
-            valid_before[(y + 1) * stride + x + 1] = valid_before[y * stride + x + 1] + in_row;
+    let mut in_rows = vec![false; mask.len()];
+    for (dst, src) in in_rows
+        .chunks_exact_mut(width)
+        .zip(mask.chunks_exact(width))
+    {
+        dilate_row(src, dst);
+    }
+    let mut near = vec![false; mask.len()];
+    for (y, near_row) in near.chunks_exact_mut(width).enumerate() {
+        for from in y.saturating_sub(EDGE_BAND)..(y + EDGE_BAND + 1).min(height) {
+            for (n, &r) in near_row.iter_mut().zip(&in_rows[from * width..][..width]) {
+                *n |= r;
+            }
         }
     }
-    let near_valid = |x: usize, y: usize| {
-        let (x0, y0) = (x.saturating_sub(EDGE_BAND), y.saturating_sub(EDGE_BAND));
-        let (x1, y1) = (
-            (x + EDGE_BAND + 1).min(width),
-            (y + EDGE_BAND + 1).min(height),
-        );
-        valid_before[y1 * stride + x1] + valid_before[y0 * stride + x0]
-            > valid_before[y0 * stride + x1] + valid_before[y1 * stride + x0]
-    };
     let mut runs: Vec<(usize, usize)> = Vec::new();
     for y in 2..height.saturating_sub(2) {
-        for x in 2..width.saturating_sub(2) {
-            let i = y * width + x;
-            if mask[i] || !near_valid(x, y) {
+        for i in y * width + 2..(y + 1) * width - 2 {
+            if mask[i] || !near[i] {
                 continue;
             }
             match runs.last_mut() {
@@ -195,4 +190,23 @@ fn void_runs_near_valid(mask: &[bool], width: usize, height: usize) -> Vec<(usiz
         }
     }
     runs
+}
+
+/// Whether `src` holds a true within [`EDGE_BAND`] places of each place, written to
+/// `dst` (a sliding count).
+fn dilate_row(src: &[bool], dst: &mut [bool]) {
+    let n = src.len();
+    let mut inside: usize = src[..n.min(EDGE_BAND)]
+        .iter()
+        .map(|&v| usize::from(v))
+        .sum();
+    for k in 0..n {
+        if k + EDGE_BAND < n {
+            inside += usize::from(src[k + EDGE_BAND]);
+        }
+        if k > EDGE_BAND {
+            inside -= usize::from(src[k - EDGE_BAND - 1]);
+        }
+        dst[k] = inside > 0;
+    }
 }
