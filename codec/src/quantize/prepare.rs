@@ -147,8 +147,22 @@ fn voids_of(mask: &[bool]) -> Option<&[bool]> {
     mask.iter().any(|&m| !m).then_some(mask)
 }
 
+/// Fills the samples `mask` says are voids: harmonically, then (what the encoder codes,
+/// [`VoidCoefficients::Zeroed`]) biharmonically near the valid samples.
+fn fill(
+    values: &mut [f64],
+    (width, height): (usize, usize),
+    mask: &[bool],
+    voids: VoidCoefficients,
+) {
+    fill_voids(values, width, height, mask);
+    if voids == VoidCoefficients::Zeroed {
+        smooth_void_edges(values, width, height, mask);
+    }
+}
+
 /// `values` with the samples `mask` says are voids filled smoothly (rounded), as `voids`
-/// says.
+/// says ([`fill`]).
 fn filled(
     mut values: Vec<i32>,
     width: usize,
@@ -158,10 +172,7 @@ fn filled(
 ) -> Vec<i32> {
     if mask.iter().any(|&m| !m) {
         let mut smooth: Vec<f64> = values.iter().map(|&v| v as f64).collect();
-        fill_voids(&mut smooth, width, height, mask);
-        if voids == VoidCoefficients::Zeroed {
-            smooth_void_edges(&mut smooth, width, height, mask);
-        }
+        fill(&mut smooth, (width, height), mask, voids);
         for (v, f) in values.iter_mut().zip(smooth) {
             *v = f.round() as i32;
         }
@@ -297,10 +308,7 @@ fn centred_samples(raster: &Raster, mask: &[bool], voids: VoidCoefficients) -> (
         return (mean, raster.samples.map_f64(|i, v| centre(i, v) as f32));
     }
     let mut centred = raster.samples.map_f64(centre);
-    fill_voids(&mut centred, raster.width, raster.height, mask);
-    if voids == VoidCoefficients::Zeroed {
-        smooth_void_edges(&mut centred, raster.width, raster.height, mask);
-    }
+    fill(&mut centred, (raster.width, raster.height), mask, voids);
     (mean, centred.iter().map(|&v| v as f32).collect())
 }
 
